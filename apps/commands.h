@@ -1,0 +1,23 @@
+// The command table of the single `lisfm` executable. Each command is
+// `int RunXxx(int argc, char** argv)` where argv[0] is "lisfm <command>"; it
+// returns the exit code. Errors are thrown (InputError -> 1, UsageError -> 2)
+// and turned into one `error: ...` line by main().
+#pragma once
+
+#include <string>
+#include <vector>
+
+namespace lisfm {
+
+struct Command {
+  std::string name;
+  std::string summary;  // one line for `lisfm help`
+  int (*run)(int argc, char** argv);
+};
+
+const std::vector<Command>& Commands();
+
+// Commands, one .cc per group.
+int RunEvaluate(int argc, char** argv);  // evaluate_command.cc
+
+}  // namespace lisfm

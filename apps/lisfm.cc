@@ -1,0 +1,85 @@
+// The `lisfm` executable: `lisfm help`, `lisfm version`, `lisfm <command> [options]`.
+#include <exception>
+#include <iomanip>
+#include <iostream>
+#include <string>
+#include <vector>
+
+#include "apps/commands.h"
+#include "core/errors.h"
+#include "core/options.h"
+
+#ifndef LISFM_VERSION
+#define LISFM_VERSION "unknown"
+#endif
+
+namespace lisfm {
+
+const std::vector<Command>& Commands() {
+  static const std::vector<Command> commands = {
+      {"evaluate", "score a trajectory against ground truth (ATE, RPE, HILTI 2022 score)",
+       &RunEvaluate},
+  };
+  return commands;
+}
+
+namespace {
+
+void PrintHelp() {
+  std::cout << "lisfm " << LISFM_VERSION
+            << " -- LiDAR-inertial structure from motion\n\n"
+               "Usage: lisfm <command> [--option value] [--Section.option value]\n"
+               "       lisfm <command> -h     lists every option with its default\n\n"
+               "Commands:\n";
+  std::cout << "  " << std::left << std::setw(20) << "help" << "this list\n";
+  std::cout << "  " << std::left << std::setw(20) << "version" << "print the version\n";
+  for (const auto& c : Commands()) {
+    std::cout << "  " << std::left << std::setw(20) << c.name << c.summary << "\n";
+  }
+}
+
+int Main(int argc, char** argv) {
+  if (argc < 2) {
+    PrintHelp();
+    return 2;
+  }
+  const std::string name = argv[1];
+  if (name == "help" || name == "-h" || name == "--help") {
+    PrintHelp();
+    return 0;
+  }
+  if (name == "version" || name == "--version") {
+    std::cout << "lisfm " << LISFM_VERSION << "\n";
+    return 0;
+  }
+  std::vector<std::string> names;
+  for (const auto& c : Commands()) {
+    names.push_back(c.name);
+    if (c.name == name) {
+      std::string arg0 = "lisfm " + name;
+      std::vector<char*> args;
+      args.push_back(arg0.data());
+      for (int i = 2; i < argc; ++i) args.push_back(argv[i]);
+      return c.run(static_cast<int>(args.size()), args.data());
+    }
+  }
+  const std::string near = NearestName(name, names);
+  throw UsageError("unknown command '" + name + "'" +
+                   (near.empty() ? "" : " (did you mean '" + near + "'?)") +
+                   "; see 'lisfm help'");
+}
+
+}  // namespace
+}  // namespace lisfm
+
+int main(int argc, char** argv) {
+  try {
+    return lisfm::Main(argc, argv);
+  } catch (const lisfm::UsageError& e) {
+    std::cerr << "error: " << e.what() << "\n";
+    return 2;
+  } catch (const std::exception& e) {
+    std::cerr << "error: " << e.what() << "\n";
+    return 1;
+  }
+}

@@ -1,0 +1,33 @@
+# Shared compile flags and the lisfm_add_test() helper.
+
+function(lisfm_target_flags target)
+  target_compile_options(${target} PRIVATE -Wall -Wextra)
+  if(LISFM_WERROR)
+    target_compile_options(${target} PRIVATE -Werror)
+  endif()
+  if(LISFM_ASAN)
+    target_compile_options(${target} PRIVATE -fsanitize=address -fno-omit-frame-pointer)
+    target_link_options(${target} PRIVATE -fsanitize=address)
+  endif()
+endfunction()
+
+# lisfm_add_test(NAME x_test SRCS a.cc b.cc LINK_LIBS lib... [LABELS slow])
+# Registers the ctest "<module>/x_test" where <module> is the current folder name.
+function(lisfm_add_test)
+  cmake_parse_arguments(T "" "NAME" "SRCS;LINK_LIBS;LABELS" ${ARGN})
+  if(NOT LISFM_TESTS_ENABLED)
+    return()
+  endif()
+  file(RELATIVE_PATH rel ${LISFM_SOURCE_DIR} ${CMAKE_CURRENT_SOURCE_DIR})
+  string(REPLACE "/" "_" module_id "${rel}")
+  set(exe "${module_id}_${T_NAME}")
+  add_executable(${exe} ${T_SRCS})
+  target_link_libraries(${exe} PRIVATE ${T_LINK_LIBS} lisfm_test_main)
+  lisfm_target_flags(${exe})
+  add_test(NAME "${rel}/${T_NAME}" COMMAND ${exe})
+  set_tests_properties("${rel}/${T_NAME}" PROPERTIES
+    ENVIRONMENT "LISFM_TEST_DATA_DIR=${LISFM_SHARED_DATA_DIR};LISFM_SOURCE_DIR=${LISFM_SOURCE_DIR};LISFM_BINARY=$<TARGET_FILE:lisfm>")
+  if(T_LABELS)
+    set_tests_properties("${rel}/${T_NAME}" PROPERTIES LABELS "${T_LABELS}")
+  endif()
+endfunction()

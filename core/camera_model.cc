@@ -1,0 +1,1 @@
+#include "core/camera_model.h"

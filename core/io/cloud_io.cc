@@ -1,0 +1,1 @@
+// cloud_io: filled in by the foundation work

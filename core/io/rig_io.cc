@@ -1,0 +1,1 @@
+// rig_io: filled in by the foundation work

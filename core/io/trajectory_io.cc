@@ -1,0 +1,1 @@
+// trajectory_io: filled in by the foundation work
