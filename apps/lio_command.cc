@@ -1,0 +1,246 @@
+// `lisfm lio`: FAST-LIO2-style LiDAR-inertial odometry on a sequence folder.
+#include <algorithm>
+#include <chrono>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <map>
+#include <numeric>
+
+#include <fmt/format.h>
+
+#include "apps/commands.h"
+#include "core/errors.h"
+#include "core/file_utils.h"
+#include "core/io/cloud_io.h"
+#include "core/io/trajectory_io.h"
+#include "core/logging.h"
+#include "core/options.h"
+#include "core/progress.h"
+#include "importers/sequence.h"
+#include "lio/lio_odometry.h"
+
+namespace lisfm {
+
+namespace {
+
+std::vector<int> ParseLidarList(const std::string& text, size_t num_lidars) {
+  std::vector<int> ids;
+  if (text == "all") {
+    for (size_t i = 0; i < num_lidars; ++i) ids.push_back(static_cast<int>(i));
+    return ids;
+  }
+  for (const auto& tok : SplitString(text, ",")) {
+    int64_t v = -1;
+    std::string t = Trim(tok);
+    if (t.rfind("lidar", 0) == 0) t = t.substr(5);
+    if (!ParseInt64(t, &v) || v < 0 || v >= static_cast<int64_t>(num_lidars)) {
+      throw UsageError(fmt::format("lisfm lio: --lidars: '{}' is not a LiDAR of the rig (it has {})",
+                                   tok, num_lidars));
+    }
+    ids.push_back(static_cast<int>(v));
+  }
+  if (ids.empty()) throw UsageError("lisfm lio: --lidars is empty");
+  return ids;
+}
+
+double Percentile(std::vector<double> v, double q) {
+  if (v.empty()) return 0;
+  std::sort(v.begin(), v.end());
+  const size_t i = std::min(v.size() - 1, static_cast<size_t>(q * (v.size() - 1) + 0.5));
+  return v[i];
+}
+
+}  // namespace
+
+int RunLio(int argc, char** argv) {
+  std::string input_path, output_path, lidars = "all";
+  int max_scans = 0;
+  bool write_keyframes = true;
+  double map_voxel = 0.2;
+  LioOptions lio;
+  OptionManager options("lisfm lio",
+                        "LiDAR-inertial odometry (iterated EKF, per-point de-skew, iVox map) on a "
+                        "sequence folder; writes trajectory.txt, keyframes/, map.pcd, scans.csv");
+  options.AddRequiredString("input_path", &input_path, "sequence folder (rig.yaml, imu0/, lidarK/)");
+  options.AddRequiredString("output_path", &output_path, "output folder");
+  options.AddString("lidars", &lidars, "LiDARs to use: all, or a list like 0 / 1 / 0,1");
+  options.AddInt("max_scans", &max_scans, "stop after this many frames (0 = all)");
+  options.AddBool("write_keyframes", &write_keyframes, "write keyframe clouds (PCD)");
+  options.AddDouble("map_voxel_size", &map_voxel, "m, voxel size of the written map.pcd");
+  options.AddDouble("Lio.imu_noise_inflation", &lio.imu_noise_inflation,
+                    "factor on the rig's IMU noise densities");
+  options.AddDouble("Lio.scan_voxel_size", &lio.scan_voxel_size, "m, scan down-sampling voxel");
+  options.AddDouble("Lio.min_range", &lio.min_range, "m, closer points are dropped (blind zone)");
+  options.AddDouble("Lio.max_range", &lio.max_range, "m, farther points are dropped");
+  options.AddInt("Lio.num_neighbours", &lio.num_neighbours, "k of the plane fit");
+  options.AddDouble("Lio.max_neighbour_distance", &lio.max_neighbour_distance,
+                    "m, farthest allowed plane neighbour");
+  options.AddDouble("Lio.max_plane_residual", &lio.max_plane_residual,
+                    "m, max distance of a neighbour to its plane");
+  options.AddDouble("Lio.point_noise_std", &lio.point_noise_std, "m, point-to-plane noise std");
+  options.AddInt("Lio.max_iterations", &lio.max_iterations, "IEKF iterations per scan");
+  options.AddDouble("Lio.convergence_rotation", &lio.convergence_rotation, "rad");
+  options.AddDouble("Lio.convergence_translation", &lio.convergence_translation, "m");
+  options.AddDouble("Lio.degeneracy_threshold", &lio.degeneracy_threshold,
+                    "eigenvalue of the update information below which a direction is weak");
+  options.AddDouble("Lio.keyframe_distance", &lio.keyframe_distance, "m between keyframes");
+  options.AddDouble("Lio.keyframe_angle_deg", &lio.keyframe_angle_deg, "deg between keyframes");
+  options.AddDouble("Map.voxel_size", &lio.map.voxel_size, "m, iVox hash voxel edge");
+  options.AddDouble("Map.resolution", &lio.map.resolution, "m, min spacing of map points");
+  options.AddInt("Map.max_points_per_voxel", &lio.map.max_points_per_voxel, "points per voxel");
+  options.AddDouble("Init.min_duration_s", &lio.init.min_duration_s,
+                    "s of stationary IMU data for the initialisation");
+  if (!options.Parse(argc, argv)) return 0;
+  if (!lio.Check()) throw UsageError("lisfm lio: invalid Lio/Map/Init option values");
+
+  const auto t0 = std::chrono::steady_clock::now();
+  LogStage("lio: reading " + input_path);
+  const Sequence seq = ReadSequence(input_path);
+  if (seq.rig.lidars.empty()) throw InputError(input_path + "/rig.yaml", "lidars", "the rig has no LiDAR");
+  const std::vector<int> used = ParseLidarList(lidars, seq.rig.lidars.size());
+  std::vector<SE3> extrinsics;
+  std::vector<double> offsets;
+  for (const auto& l : seq.rig.lidars) {
+    extrinsics.push_back(l.imu_from_lidar);
+    offsets.push_back(l.time_offset_s);
+  }
+  LioOdometry odom(lio, seq.rig.imu, extrinsics, offsets);
+  const int primary = used.front();
+  const auto& primary_scans = seq.lidar_scans[primary];
+  if (primary_scans.empty()) throw InputError(input_path, seq.rig.lidars[primary].name, "no scans");
+  LogInfo("lio: {} IMU samples, {} frames from {}{}", seq.imu.size(), primary_scans.size(),
+          seq.rig.lidars[primary].name, used.size() > 1 ? fmt::format(" + {} more LiDAR(s)", used.size() - 1) : "");
+
+  CreateDirs(output_path);
+  const std::string kf_dir = JoinPaths(output_path, "keyframes");
+  const std::string kf_tmp = kf_dir + ".tmp";
+  if (write_keyframes) {
+    std::error_code ec;
+    std::filesystem::remove_all(kf_tmp, ec);
+    CreateDirs(kf_tmp);
+  }
+
+  size_t imu_next = 0;
+  std::vector<size_t> next_scan(seq.rig.lidars.size(), 0);
+  Trajectory trajectory;
+  std::vector<StampedPose> keyframe_poses;
+  std::vector<double> times_ms;
+  int processed = 0, skipped = 0, degenerate = 0;
+  std::ostringstream scans_csv;
+  scans_csv << "#t_ns,processed,raw_points,downsampled,matched,iterations,time_ms,num_weak,"
+               "min_eigenvalue,keyframe,message\n";
+  const size_t num_frames = max_scans > 0 ? std::min<size_t>(max_scans, primary_scans.size())
+                                          : primary_scans.size();
+  ProgressReporter progress("lio", static_cast<int64_t>(num_frames));
+  TimestampNs prev_primary_ns = INT64_MIN;
+  for (size_t f = 0; f < num_frames; ++f) {
+    std::vector<PointCloud> clouds;
+    std::vector<int> sensor_ids;
+    clouds.push_back(ReadPointCloud(primary_scans[f].path));
+    clouds.back().stamp_ns = primary_scans[f].t_ns;
+    sensor_ids.push_back(primary);
+    // Secondary LiDARs: scans that start before this primary scan starts
+    // (and after the previous one) join this frame.
+    for (size_t u = 1; u < used.size(); ++u) {
+      const int k = used[u];
+      auto& idx = next_scan[k];
+      while (idx < seq.lidar_scans[k].size() && seq.lidar_scans[k][idx].t_ns <= primary_scans[f].t_ns) {
+        if (seq.lidar_scans[k][idx].t_ns > prev_primary_ns) {
+          clouds.push_back(ReadPointCloud(seq.lidar_scans[k][idx].path));
+          clouds.back().stamp_ns = seq.lidar_scans[k][idx].t_ns;
+          sensor_ids.push_back(k);
+        }
+        ++idx;
+      }
+    }
+    prev_primary_ns = primary_scans[f].t_ns;
+    // Frame end and IMU up to just past it.
+    TimestampNs frame_end = INT64_MIN;
+    for (size_t c = 0; c < clouds.size(); ++c) {
+      float tmax = 0;
+      for (const auto& p : clouds[c].points) tmax = std::max(tmax, p.t);
+      frame_end = std::max(frame_end, clouds[c].stamp_ns + SecondsToNs(seq.rig.lidars[sensor_ids[c]].time_offset_s) +
+                                          SecondsToNs(tmax));
+    }
+    while (imu_next < seq.imu.size() &&
+           (odom.LatestImuTime() < frame_end || seq.imu[imu_next].t_ns <= frame_end)) {
+      odom.AddImu(seq.imu[imu_next++]);
+    }
+    std::vector<LidarScanInput> inputs;
+    for (size_t c = 0; c < clouds.size(); ++c) inputs.push_back({sensor_ids[c], &clouds[c]});
+    const LioFrameResult r = odom.ProcessFrame(inputs);
+    if (r.processed) {
+      ++processed;
+      times_ms.push_back(r.time_ms);
+      if (trajectory.empty() || r.t_ns > trajectory.end_ns()) trajectory.PushBack({r.t_ns, r.world_from_imu});
+      if (r.degeneracy.num_weak > 0) ++degenerate;
+    } else {
+      ++skipped;
+      if (odom.initialized()) LogWarning("lio: frame at {} ns skipped: {}", r.t_ns, r.message);
+    }
+    for (auto& kf : odom.TakeKeyframes()) {
+      keyframe_poses.push_back({kf.t_ns, kf.world_from_imu});
+      if (write_keyframes) {
+        WritePcd(JoinPaths(kf_tmp, std::to_string(kf.t_ns) + ".pcd"), kf.cloud_in_imu);
+      }
+    }
+    scans_csv << r.t_ns << "," << (r.processed ? 1 : 0) << "," << r.num_raw_points << ","
+              << r.num_downsampled << "," << r.num_matched << "," << r.iterations << ","
+              << fmt::format("{:.3f}", r.time_ms) << "," << r.degeneracy.num_weak << ","
+              << fmt::format("{:.6g}", r.degeneracy.eigenvalues(0)) << "," << (r.is_keyframe ? 1 : 0)
+              << ",\"" << r.message << "\"\n";
+    progress.Add();
+  }
+  progress.Finish();
+  if (trajectory.empty()) {
+    throw InputError(input_path, "", "lio produced no pose (no frame could be processed)");
+  }
+
+  // Outputs.
+  WriteTum(JoinPaths(output_path, "trajectory.txt"), trajectory);
+  WriteFileAtomically(JoinPaths(output_path, "scans.csv"), scans_csv.str());
+  {
+    std::ostringstream kf;
+    kf << "#t_ns,tx,ty,tz,qx,qy,qz,qw (world_from_imu; cloud keyframes/<t_ns>.pcd in the IMU frame)\n";
+    for (const auto& k : keyframe_poses) {
+      const auto& q = k.pose.rotation();
+      const auto& t = k.pose.translation();
+      kf << k.t_ns << fmt::format(",{:.9f},{:.9f},{:.9f},{:.9f},{:.9f},{:.9f},{:.9f}\n", t.x(), t.y(),
+                                  t.z(), q.x(), q.y(), q.z(), q.w());
+    }
+    if (write_keyframes) {
+      WriteFileAtomically(JoinPaths(kf_tmp, "keyframes.csv"), kf.str());
+      std::error_code ec;
+      std::filesystem::remove_all(kf_dir, ec);
+      std::filesystem::rename(kf_tmp, kf_dir, ec);
+      if (ec) throw InputError(kf_dir, "", "cannot move keyframes into place: " + ec.message());
+    }
+  }
+  PointCloud map_cloud;
+  for (const auto& p : odom.map().AllPoints()) {
+    LidarPoint lp;
+    lp.x = p.x();
+    lp.y = p.y();
+    lp.z = p.z();
+    map_cloud.points.push_back(lp);
+  }
+  map_cloud = VoxelDownsample(map_cloud, map_voxel);
+  WritePcd(JoinPaths(output_path, "map.pcd"), map_cloud);
+  options.WriteConfig(JoinPaths(output_path, "lio_config.yaml"));
+
+  const double wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  const double data_s = NsToSeconds(trajectory.end_ns() - primary_scans.front().t_ns);
+  const double proc_s = std::accumulate(times_ms.begin(), times_ms.end(), 0.0) / 1000.0;
+  LogInfo(
+      "lio summary: {} frames processed, {} skipped, {} with weak directions; per-frame time median "
+      "{:.2f} ms, p95 {:.2f} ms ({:.1f}x real time for the filter, {:.1f}x with I/O); {} keyframes; "
+      "map {} points; path {:.2f} m over {:.1f} s; outputs in {} (trajectory.txt, keyframes/, map.pcd, "
+      "scans.csv)",
+      processed, skipped, degenerate, Percentile(times_ms, 0.5), Percentile(times_ms, 0.95),
+      proc_s > 0 ? data_s / proc_s : 0.0, wall_s > 0 ? data_s / wall_s : 0.0, keyframe_poses.size(),
+      map_cloud.size(), trajectory.PathLength(), data_s, output_path);
+  return 0;
+}
+
+}  // namespace lisfm

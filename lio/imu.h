@@ -1,0 +1,48 @@
+// IMU samples and the static initialisation of a LiDAR-inertial filter.
+//
+// Frames (DESIGN.md): the body frame is the IMU frame. The world frame of lio is
+// gravity-aligned with z up; its origin and yaw are those of the IMU at the end
+// of the initial stationary period (the yaw of the minimal rotation taking the
+// measured "up" to +z).
+#pragma once
+
+#include <vector>
+
+#include "core/geometry.h"
+#include "core/time.h"
+
+namespace lisfm {
+
+struct ImuSample {
+  TimestampNs t_ns = 0;
+  Vec3 gyro = Vec3::Zero();  // rad/s, body frame
+  Vec3 accel = Vec3::Zero();  // specific force, m/s^2 (or g, see ImuInitializerOptions)
+};
+
+struct ImuInitializerOptions {
+  double min_duration_s = 0.5;       // stationary window length needed (s)
+  int min_samples = 50;              // and at least this many samples
+  double max_gyro_std = 0.02;        // rad/s: above this the IMU is not static
+  double max_accel_std = 0.15;       // m/s^2 (after scale): above this not static
+  double gravity_magnitude = 9.81;   // m/s^2
+  bool Check() const;
+};
+
+struct ImuInitialization {
+  bool success = false;
+  TimestampNs t_ns = 0;          // time of the last sample used
+  Quat world_from_imu = Quat::Identity();
+  Vec3 gyro_bias = Vec3::Zero();  // rad/s
+  double accel_scale = 1.0;       // multiply raw accel by this to get m/s^2 (9.81 if in g)
+  Vec3 gravity_world = Vec3(0, 0, -9.81);
+  std::string message;
+};
+
+// Estimates gravity direction, gyro bias and accelerometer scale from the
+// first stationary window of `samples` (sorted by time). The window is the
+// longest prefix shorter than max(min_duration_s, ...) whose statistics pass
+// the static checks; returns success = false with a message otherwise.
+ImuInitialization InitializeFromStaticImu(const std::vector<ImuSample>& samples,
+                                          const ImuInitializerOptions& options);
+
+}  // namespace lisfm

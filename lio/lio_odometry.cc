@@ -1,0 +1,515 @@
+#include "lio/lio_odometry.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+
+#include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
+#include <fmt/format.h>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+#include <tbb/parallel_reduce.h>
+
+#include "core/errors.h"
+#include "core/logging.h"
+
+namespace lisfm {
+
+namespace {
+
+using Mat18 = Eigen::Matrix<double, 18, 18>;
+using Vec18 = Eigen::Matrix<double, 18, 1>;
+constexpr int kTheta = 0, kPos = 3, kVel = 6, kBg = 9, kBa = 12, kGrav = 15;
+constexpr int64_t kMaxImuGapNs = 100000000;  // 0.1 s
+
+// A plane n·x + d = 0 with |n| = 1 fitted to k points by least squares on
+// A n' = -1 (FAST-LIO2's esti_plane), then checked against max_residual.
+bool FitPlane(const std::vector<Eigen::Vector3f>& pts, double max_residual, Vec4* plane) {
+  const int k = static_cast<int>(pts.size());
+  Eigen::MatrixX3d A(k, 3);
+  for (int i = 0; i < k; ++i) A.row(i) = pts[i].cast<double>().transpose();
+  const Vec3 n = A.colPivHouseholderQr().solve(-Eigen::VectorXd::Ones(k));
+  const double norm = n.norm();
+  if (!(norm > 1e-9) || !std::isfinite(norm)) return false;
+  const Vec3 unit = n / norm;
+  const double d = 1.0 / norm;
+  for (int i = 0; i < k; ++i) {
+    if (std::abs(unit.dot(A.row(i).transpose()) + d) > max_residual) return false;
+  }
+  *plane << unit, d;
+  return true;
+}
+
+struct Normal6 {
+  Mat6 HtH = Mat6::Zero();
+  Vec6 Htz = Vec6::Zero();
+  int count = 0;
+  double sum_sq = 0;
+  void Join(const Normal6& o) {
+    HtH += o.HtH;
+    Htz += o.Htz;
+    count += o.count;
+    sum_sq += o.sum_sq;
+  }
+};
+
+}  // namespace
+
+bool LioOptions::Check() const {
+  return imu_noise_inflation > 0 && scan_voxel_size >= 0 && min_range >= 0 &&
+         max_range > min_range && num_neighbours >= 3 && max_neighbour_distance > 0 &&
+         max_plane_residual > 0 && point_noise_std > 0 && max_iterations >= 1 &&
+         convergence_rotation > 0 && convergence_translation > 0 && map.Check() &&
+         keyframe_distance > 0 && keyframe_angle_deg > 0 && init.Check();
+}
+
+LioOdometry::LioOdometry(const LioOptions& options,
+                         const ImuNoise& imu_noise,
+                         std::vector<SE3> imu_from_lidar,
+                         std::vector<double> lidar_time_offsets_s)
+    : options_(options),
+      imu_noise_(imu_noise),
+      imu_from_lidar_(std::move(imu_from_lidar)),
+      lidar_time_offsets_s_(std::move(lidar_time_offsets_s)),
+      map_(std::make_unique<VoxelMap>(options.map)) {
+  if (!options_.Check()) throw InputError("lio: invalid options (see lisfm lio -h for ranges)");
+  THROW_CHECK_EQ(imu_from_lidar_.size(), lidar_time_offsets_s_.size());
+  if (imu_from_lidar_.empty()) throw InputError("lio: no LiDAR extrinsics given");
+  P_.setZero();
+}
+
+LioOdometry::~LioOdometry() = default;
+
+TimestampNs LioOdometry::LatestImuTime() const { return last_imu_time_; }
+
+void LioOdometry::AddImu(const ImuSample& sample) {
+  if (sample.t_ns <= last_imu_time_) {
+    throw InputError(fmt::format("IMU time stamps not increasing: {} after {} ns", sample.t_ns,
+                                 last_imu_time_));
+  }
+  if (!sample.gyro.allFinite() || !sample.accel.allFinite()) {
+    throw InputError(fmt::format("IMU sample at {} ns is not finite", sample.t_ns));
+  }
+  if (last_imu_time_ != INT64_MIN && sample.t_ns - last_imu_time_ > kMaxImuGapNs) {
+    LogWarning("IMU gap of {:.3f} s before t = {} ns; frames spanning it are not updated",
+               NsToSeconds(sample.t_ns - last_imu_time_), sample.t_ns);
+  }
+  last_imu_time_ = sample.t_ns;
+  if (!initialized_) {
+    init_samples_.push_back(sample);
+    TryInitialize();
+    return;
+  }
+  imu_buffer_.push_back(sample);
+}
+
+bool LioOdometry::TryInitialize() {
+  const TimestampNs span = init_samples_.back().t_ns - init_samples_.front().t_ns;
+  if (span < SecondsToNs(options_.init.min_duration_s)) return false;
+  init_ = InitializeFromStaticImu(init_samples_, options_.init);
+  if (!init_.success) {
+    // Not static at the start: initialise anyway from the mean specific force,
+    // as FAST-LIO2 does, and say so.
+    ImuInitializerOptions relaxed = options_.init;
+    relaxed.max_accel_std = relaxed.max_gyro_std = 1e9;
+    const std::string why = init_.message;
+    init_ = InitializeFromStaticImu(init_samples_, relaxed);
+    if (!init_.success) return false;
+    init_.gyro_bias.setZero();
+    LogWarning("lio: {}; initialised without a static period (gyro bias 0)", why);
+  }
+  LogInfo("lio: {}", init_.message);
+  initialized_ = true;
+  state_t_ns_ = init_.t_ns;
+  R_ = init_.world_from_imu;
+  p_.setZero();
+  v_.setZero();
+  bg_ = init_.gyro_bias;
+  ba_.setZero();
+  g_ = init_.gravity_world;
+  // Initial uncertainty: tilt from the static average, yaw/position define the
+  // world frame (gauge, tiny), biases from their typical ranges.
+  P_.setZero();
+  P_.block<2, 2>(kTheta, kTheta) = Eigen::Matrix2d::Identity() * 1e-4;
+  P_(kTheta + 2, kTheta + 2) = 1e-6;
+  P_.block<3, 3>(kPos, kPos) = Mat3::Identity() * 1e-6;
+  P_.block<3, 3>(kVel, kVel) = Mat3::Identity() * 1e-4;
+  P_.block<3, 3>(kBg, kBg) = Mat3::Identity() * 1e-6;
+  P_.block<3, 3>(kBa, kBa) = Mat3::Identity() * 1e-2;
+  P_.block<3, 3>(kGrav, kGrav) = Mat3::Identity() * 1e-6;
+  for (const auto& s : init_samples_) {
+    if (s.t_ns == init_.t_ns) {
+      last_imu_ = s;
+      have_last_imu_ = true;
+    } else if (s.t_ns > init_.t_ns) {
+      imu_buffer_.push_back(s);
+    }
+  }
+  init_samples_.clear();
+  return true;
+}
+
+void LioOdometry::PropagateStep(const Vec3& gyro, const Vec3& accel, double dt) {
+  const Vec3 w = gyro - bg_;
+  const Vec3 a = accel * init_.accel_scale - ba_;
+  const Mat3 R = R_.toRotationMatrix();
+  const Vec3 a_world = R * a + g_;
+  // Mean.
+  p_ += v_ * dt + 0.5 * a_world * dt * dt;
+  v_ += a_world * dt;
+  R_ = (R_ * so3::Exp(w * dt)).normalized();
+  // Covariance: P = F P Fᵀ + Q (right-perturbation error dynamics).
+  Mat18 F = Mat18::Identity();
+  F.block<3, 3>(kTheta, kTheta) = so3::ExpMatrix(-w * dt);
+  F.block<3, 3>(kTheta, kBg) = -so3::RightJacobian(w * dt) * dt;
+  F.block<3, 3>(kPos, kVel) = Mat3::Identity() * dt;
+  F.block<3, 3>(kVel, kTheta) = -R * Hat(a) * dt;
+  F.block<3, 3>(kVel, kBa) = -R * dt;
+  F.block<3, 3>(kVel, kGrav) = Mat3::Identity() * dt;
+  const double k = options_.imu_noise_inflation;
+  const double sg = imu_noise_.gyroscope_noise_density * k;
+  const double sa = imu_noise_.accelerometer_noise_density * k;
+  const double sbg = imu_noise_.gyroscope_random_walk * k;
+  const double sba = imu_noise_.accelerometer_random_walk * k;
+  P_ = F * P_ * F.transpose();
+  P_.block<3, 3>(kTheta, kTheta).diagonal().array() += sg * sg * dt;
+  P_.block<3, 3>(kVel, kVel).diagonal().array() += sa * sa * dt;
+  P_.block<3, 3>(kBg, kBg).diagonal().array() += sbg * sbg * dt;
+  P_.block<3, 3>(kBa, kBa).diagonal().array() += sba * sba * dt;
+}
+
+bool LioOdometry::PropagateTo(TimestampNs t_ns, std::vector<PoseSample>* history) {
+  if (last_imu_time_ < t_ns || !have_last_imu_) return false;
+  auto record = [&](const Vec3& gyro_mean, const Vec3& acc_mean) {
+    PoseSample s;
+    s.t_ns = state_t_ns_;
+    s.R = R_;
+    s.p = p_;
+    s.v = v_;
+    s.omega = gyro_mean - bg_;
+    s.acc_world = R_ * (acc_mean * init_.accel_scale - ba_) + g_;
+    history->push_back(s);
+  };
+  while (state_t_ns_ < t_ns) {
+    THROW_CHECK(!imu_buffer_.empty());
+    const ImuSample& next = imu_buffer_.front();
+    const Vec3 gyro = 0.5 * (last_imu_.gyro + next.gyro);
+    const Vec3 acc = 0.5 * (last_imu_.accel + next.accel);
+    const TimestampNs seg_end = std::min(next.t_ns, t_ns);
+    const double dt = NsToSeconds(seg_end - state_t_ns_);
+    record(gyro, acc);
+    if (dt > 0) PropagateStep(gyro, acc, dt);
+    state_t_ns_ = seg_end;
+    if (seg_end == next.t_ns) {
+      last_imu_ = next;
+      imu_buffer_.pop_front();
+    }
+  }
+  // Closing sample at t_ns (zero-length segment, rates of the last segment).
+  if (!history->empty()) {
+    PoseSample end = history->back();
+    end.t_ns = state_t_ns_;
+    end.R = R_;
+    end.p = p_;
+    end.v = v_;
+    history->push_back(end);
+  }
+  return true;
+}
+
+std::vector<Keyframe> LioOdometry::TakeKeyframes() {
+  std::vector<Keyframe> out;
+  out.swap(keyframes_);
+  return out;
+}
+
+LioFrameResult LioOdometry::ProcessFrame(const std::vector<LidarScanInput>& scans) {
+  const auto wall_start = std::chrono::steady_clock::now();
+  LioFrameResult result;
+  // Absolute IMU-clock time of every point; the frame ends at the latest one.
+  TimestampNs t_begin = INT64_MAX, t_end = INT64_MIN;
+  for (const auto& s : scans) {
+    THROW_CHECK(s.cloud != nullptr);
+    if (s.sensor_id < 0 || s.sensor_id >= static_cast<int>(imu_from_lidar_.size())) {
+      throw InputError(fmt::format("lio: scan from unknown LiDAR {} (the rig has {})", s.sensor_id,
+                                   imu_from_lidar_.size()));
+    }
+    result.num_raw_points += static_cast<int>(s.cloud->size());
+    const TimestampNs offset = SecondsToNs(lidar_time_offsets_s_[s.sensor_id]);
+    for (const auto& p : s.cloud->points) {
+      const TimestampNs t = s.cloud->stamp_ns + offset + SecondsToNs(p.t);
+      t_begin = std::min(t_begin, t);
+      t_end = std::max(t_end, t);
+    }
+  }
+  result.t_ns = t_end;
+  if (result.num_raw_points == 0) {
+    result.message = "empty scan";
+    return result;
+  }
+  if (!initialized_) {
+    result.message = "waiting for the IMU initialisation";
+    return result;
+  }
+  if (t_end <= state_t_ns_) {
+    result.message = "scan ends before the current filter time";
+    return result;
+  }
+  if (last_imu_time_ < t_end) {
+    result.message = fmt::format("scan outside IMU coverage (ends {:.3f} s after the last IMU sample)",
+                                 NsToSeconds(t_end - last_imu_time_));
+    return result;
+  }
+  // IMU gap inside the frame interval?
+  bool gap = false;
+  {
+    TimestampNs prev = last_imu_.t_ns;
+    for (const auto& s : imu_buffer_) {
+      if (s.t_ns > t_end) break;
+      if (s.t_ns - prev > kMaxImuGapNs) gap = true;
+      prev = s.t_ns;
+    }
+  }
+
+  // 1. Propagate to the frame end, keeping the poses for de-skew.
+  std::vector<PoseSample> history;
+  history.reserve(64);
+  PropagateTo(t_end, &history);
+  const SE3 world_from_imu_pred(R_, p_);
+  const SE3 imu_end_from_world = world_from_imu_pred.Inverse();
+  if (gap) {
+    result.message = "IMU gap > 0.1 s inside the frame: prediction only";
+    result.world_from_imu = world_from_imu_pred;
+    result.velocity = v_;
+    return result;
+  }
+
+  // 2. De-skew every point to the frame end, in the IMU frame.
+  PointCloud deskewed;
+  deskewed.stamp_ns = t_end;
+  for (const auto& s : scans) {
+    const SE3& T_il = imu_from_lidar_[s.sensor_id];
+    const TimestampNs offset = SecondsToNs(lidar_time_offsets_s_[s.sensor_id]);
+    const size_t base = deskewed.points.size();
+    deskewed.points.resize(base + s.cloud->size());
+    const double min_r2 = options_.min_range * options_.min_range;
+    const double max_r2 = options_.max_range * options_.max_range;
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, s.cloud->size(), 4096),
+                      [&](const tbb::blocked_range<size_t>& r) {
+      for (size_t i = r.begin(); i < r.end(); ++i) {
+        const LidarPoint& in = s.cloud->points[i];
+        LidarPoint& out = deskewed.points[base + i];
+        out = in;
+        const Vec3 x_l = in.xyzd();
+        const double r2 = x_l.squaredNorm();
+        if (!x_l.allFinite() || r2 < min_r2 || r2 > max_r2) {
+          out.x = out.y = out.z = std::numeric_limits<float>::quiet_NaN();
+          continue;
+        }
+        const TimestampNs t = s.cloud->stamp_ns + offset + SecondsToNs(in.t);
+        // Segment with history[j].t <= t (or the first, extrapolating back).
+        auto it = std::upper_bound(history.begin(), history.end(), t,
+                                   [](TimestampNs v, const PoseSample& ps) { return v < ps.t_ns; });
+        const PoseSample& seg = (it == history.begin()) ? history.front() : *(it - 1);
+        const double dt = NsToSeconds(t - seg.t_ns);
+        const Quat R = seg.R * so3::Exp(seg.omega * dt);
+        const Vec3 p = seg.p + seg.v * dt + 0.5 * seg.acc_world * dt * dt;
+        const Vec3 x_w = R * (T_il * x_l) + p;
+        const Vec3 x_end = imu_end_from_world * x_w;
+        out.x = static_cast<float>(x_end.x());
+        out.y = static_cast<float>(x_end.y());
+        out.z = static_cast<float>(x_end.z());
+        out.t = static_cast<float>(NsToSeconds(t - t_end));
+        out.sensor_id = static_cast<uint8_t>(s.sensor_id);
+      }
+    });
+  }
+  const PointCloud down = VoxelDownsample(deskewed, options_.scan_voxel_size);
+  result.num_downsampled = static_cast<int>(down.size());
+  std::vector<Eigen::Vector3f> body(down.size());
+  for (size_t i = 0; i < down.size(); ++i) body[i] = down.points[i].xyz();
+
+  auto insert_into_map = [&](const SE3& pose) {
+    std::vector<Eigen::Vector3f> world(body.size());
+    const Eigen::Matrix3f R = pose.RotationMatrix().cast<float>();
+    const Eigen::Vector3f t = pose.translation().cast<float>();
+    for (size_t i = 0; i < body.size(); ++i) world[i] = R * body[i] + t;
+    map_->Insert(world);
+  };
+
+  auto finish = [&](const SE3& pose) {
+    result.world_from_imu = pose;
+    result.velocity = v_;
+    result.processed = true;
+    const bool kf = !have_keyframe_ ||
+                    (pose.translation() - last_keyframe_pose_.translation()).norm() >=
+                        options_.keyframe_distance ||
+                    so3::AngularDistance(pose.rotation(), last_keyframe_pose_.rotation()) >=
+                        options_.keyframe_angle_deg * M_PI / 180.0;
+    if (kf) {
+      Keyframe k;
+      k.t_ns = t_end;
+      k.world_from_imu = pose;
+      k.cloud_in_imu = deskewed;
+      RemoveNonFinite(&k.cloud_in_imu);
+      keyframes_.push_back(std::move(k));
+      last_keyframe_pose_ = pose;
+      have_keyframe_ = true;
+      result.is_keyframe = true;
+    }
+    result.time_ms =
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - wall_start)
+            .count();
+  };
+
+  if (!map_initialized_) {
+    if (body.size() < 50) {
+      result.message = "too few points to start the map";
+      return result;
+    }
+    insert_into_map(world_from_imu_pred);
+    map_initialized_ = true;
+    result.message = "first scan: map initialised";
+    finish(world_from_imu_pred);
+    return result;
+  }
+
+  // 3. Iterated update (information form).
+  const Quat R_pred = R_;
+  const Vec3 p_pred = p_, v_pred = v_, bg_pred = bg_, ba_pred = ba_, g_pred = g_;
+  const Mat18 P_inv = P_.ldlt().solve(Mat18::Identity());
+  const double inv_var = 1.0 / (options_.point_noise_std * options_.point_noise_std);
+  std::vector<Vec4> planes(body.size());
+  std::vector<char> plane_ok(body.size(), 0);
+
+  auto associate = [&](const Mat3& R, const Vec3& t) {
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, body.size(), 256),
+                      [&](const tbb::blocked_range<size_t>& r) {
+      std::vector<Eigen::Vector3f> nbrs;
+      std::vector<float> d2;
+      nbrs.reserve(options_.num_neighbours);
+      d2.reserve(options_.num_neighbours);
+      for (size_t i = r.begin(); i < r.end(); ++i) {
+        const Vec3 pw = R * body[i].cast<double>() + t;
+        plane_ok[i] = 0;
+        const int n = map_->KnnSearch(pw.cast<float>(), options_.num_neighbours,
+                                      options_.max_neighbour_distance, &nbrs, &d2);
+        if (n < options_.num_neighbours) continue;
+        if (FitPlane(nbrs, options_.max_plane_residual, &planes[i])) plane_ok[i] = 1;
+      }
+    });
+  };
+
+  auto accumulate = [&](const Mat3& R, const Vec3& t) {
+    return tbb::parallel_reduce(
+        tbb::blocked_range<size_t>(0, body.size(), 512), Normal6(),
+        [&](const tbb::blocked_range<size_t>& r, Normal6 acc) {
+          for (size_t i = r.begin(); i < r.end(); ++i) {
+            if (!plane_ok[i]) continue;
+            const Vec3 pb = body[i].cast<double>();
+            const Vec3 pw = R * pb + t;
+            const Vec3 n = planes[i].head<3>();
+            const double res = n.dot(pw) + planes[i](3);
+            // FAST-LIO2's gate: closer points must fit tighter.
+            if (1.0 - 0.9 * std::abs(res) / std::sqrt(pb.norm()) <= 0.9) continue;
+            Vec6 h;
+            h.head<3>() = -(R * Hat(pb)).transpose() * n;  // d res / d θ (right perturbation)
+            h.tail<3>() = n;                               // d res / d p
+            acc.HtH.noalias() += h * h.transpose();
+            acc.Htz.noalias() += h * res;
+            acc.count += 1;
+            acc.sum_sq += res * res;
+          }
+          return acc;
+        },
+        [](Normal6 a, const Normal6& b) {
+          a.Join(b);
+          return a;
+        });
+  };
+
+  Normal6 normal;
+  bool converged = false;
+  bool searched_after_convergence = false;
+  associate(R_.toRotationMatrix(), p_);
+  int it = 0;
+  for (; it < options_.max_iterations; ++it) {
+    normal = accumulate(R_.toRotationMatrix(), p_);
+    if (normal.count < 6) break;
+    Vec18 d;
+    d.segment<3>(kTheta) = so3::Log(R_pred.conjugate() * R_);
+    d.segment<3>(kPos) = p_ - p_pred;
+    d.segment<3>(kVel) = v_ - v_pred;
+    d.segment<3>(kBg) = bg_ - bg_pred;
+    d.segment<3>(kBa) = ba_ - ba_pred;
+    d.segment<3>(kGrav) = g_ - g_pred;
+    Mat18 A = P_inv;
+    A.topLeftCorner<6, 6>() += normal.HtH * inv_var;
+    Vec18 b = -P_inv * d;
+    b.head<6>() -= normal.Htz * inv_var;
+    const Vec18 delta = A.ldlt().solve(b);
+    if (!delta.allFinite()) break;
+    R_ = (R_ * so3::Exp(delta.segment<3>(kTheta))).normalized();
+    p_ += delta.segment<3>(kPos);
+    v_ += delta.segment<3>(kVel);
+    bg_ += delta.segment<3>(kBg);
+    ba_ += delta.segment<3>(kBa);
+    g_ += delta.segment<3>(kGrav);
+    const bool small = delta.segment<3>(kTheta).norm() < options_.convergence_rotation &&
+                       delta.segment<3>(kPos).norm() < options_.convergence_translation;
+    if (small) {
+      if (searched_after_convergence) {
+        converged = true;
+        ++it;
+        break;
+      }
+      // Re-associate once at the converged pose, then iterate again (FAST-LIO2).
+      associate(R_.toRotationMatrix(), p_);
+      searched_after_convergence = true;
+    }
+  }
+  result.iterations = it;
+  if (normal.count < 6) {
+    // No usable planes: keep the IMU prediction (degenerate / feature-less).
+    R_ = R_pred;
+    p_ = p_pred;
+    v_ = v_pred;
+    bg_ = bg_pred;
+    ba_ = ba_pred;
+    g_ = g_pred;
+    result.message = "no valid point-to-plane matches: IMU prediction only";
+    result.degeneracy.num_weak = 6;
+    const SE3 pose(R_, p_);
+    insert_into_map(pose);
+    finish(pose);
+    result.processed = false;
+    return result;
+  }
+  // Posterior covariance at the final linearisation.
+  normal = accumulate(R_.toRotationMatrix(), p_);
+  Mat18 A = P_inv;
+  A.topLeftCorner<6, 6>() += normal.HtH * inv_var;
+  P_ = A.ldlt().solve(Mat18::Identity());
+  P_ = 0.5 * (P_ + P_.transpose()).eval();
+  result.num_matched = normal.count;
+
+  // Degeneracy: eigenvalues of the information the points gave.
+  Eigen::SelfAdjointEigenSolver<Mat6> eig(normal.HtH * inv_var);
+  result.degeneracy.eigenvalues = eig.eigenvalues();
+  result.degeneracy.weakest_direction = eig.eigenvectors().col(0);
+  for (int i = 0; i < 6; ++i) {
+    if (eig.eigenvalues()(i) < options_.degeneracy_threshold) ++result.degeneracy.num_weak;
+  }
+  if (!converged) result.message = "iteration limit reached";
+
+  const SE3 pose(R_, p_);
+  if (!pose.translation().allFinite() || !pose.rotation().coeffs().allFinite()) {
+    throw InternalError("lio: non-finite pose after the update");
+  }
+  insert_into_map(pose);
+  finish(pose);
+  return result;
+}
+
+}  // namespace lisfm

@@ -1,0 +1,156 @@
+// FAST-LIO2-style LiDAR-inertial odometry (Xu et al., "FAST-LIO2", T-RO 2022):
+// IMU forward propagation of an error-state Kalman filter, per-point de-skew by
+// backward interpolation of the propagated poses, and an iterated update in
+// information form against an incremental iVox map (lio/voxel_map.h).
+//
+// State x = (R, p, v, bg, ba, g): world_from_imu rotation and position, world
+// velocity, gyro and accelerometer biases (body frame), gravity (world). The
+// 18-dim error state is [dθ, dp, dv, dbg, dba, dg]; rotation is perturbed on the
+// right, R = R̂·Exp(dθ) (DESIGN.md). Units: rad, m, s.
+//
+// The iterated update is the Gauss-Newton form of the IEKF (FAST-LIO2 Eq. 18,
+// with the boxminus Jacobian taken as identity): at iterate x_k with
+// d = x_k ⊟ x̂, solve (P⁻¹ + HᵀR⁻¹H) δ = −P⁻¹ d − HᵀR⁻¹ z, x_{k+1} = x_k ⊞ δ.
+// H has only the 6 pose columns non-zero, so the cost per iteration is one pass
+// over the points to accumulate the 6x6 HᵀH, then an 18x18 solve: it grows with
+// the state size, not the number of points.
+//
+// Threading: AddImu/ProcessFrame are called from one thread; ProcessFrame uses
+// TBB internally for de-skew and residuals.
+#pragma once
+
+#include <deque>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "core/geometry.h"
+#include "core/point_cloud.h"
+#include "core/rig.h"
+#include "lio/imu.h"
+#include "lio/voxel_map.h"
+
+namespace lisfm {
+
+struct LioOptions {
+  // IMU process noise: the rig's continuous-time densities times this factor
+  // (absorbs discretisation and vibration; FAST-LIO2 uses far larger values).
+  double imu_noise_inflation = 10.0;
+  double scan_voxel_size = 0.3;     // m, down-sampling of each de-skewed scan
+  double min_range = 0.5;           // m, points closer to the sensor are dropped (blind)
+  double max_range = 100.0;         // m
+  int num_neighbours = 5;           // k of the plane fit
+  double max_neighbour_distance = 2.2;  // m, the 5th neighbour must be closer (sqrt 5 m^2)
+  double max_plane_residual = 0.1;  // m, every neighbour must be this close to the plane
+  double point_noise_std = 0.03;    // m, point-to-plane measurement std (FAST-LIO2: sqrt(0.001))
+  int max_iterations = 4;           // IEKF iterations per scan
+  double convergence_rotation = 1e-4;     // rad, stop when the step is below both
+  double convergence_translation = 1e-3;  // m
+  double degeneracy_threshold = 100.0;    // eigenvalue of HᵀH/σ² (1/m² or 1/rad²) below = weak
+  VoxelMapOptions map;              // the incremental map
+  double keyframe_distance = 1.0;   // m between keyframes
+  double keyframe_angle_deg = 15.0; // or this much rotation
+  ImuInitializerOptions init;
+  bool Check() const;
+};
+
+// Which directions one update constrained weakly.
+struct DegeneracyReport {
+  Vec6 eigenvalues = Vec6::Zero();  // of HᵀH/σ² over [θ; p], ascending
+  int num_weak = 0;                 // eigenvalues below the threshold
+  Vec6 weakest_direction = Vec6::Zero();
+};
+
+struct LioFrameResult {
+  bool processed = false;      // false: skipped (message says why)
+  std::string message;
+  TimestampNs t_ns = 0;        // frame end time: the pose's time stamp
+  SE3 world_from_imu;
+  Vec3 velocity = Vec3::Zero();
+  int num_raw_points = 0;
+  int num_downsampled = 0;
+  int num_matched = 0;         // points with a valid plane in the last iteration
+  int iterations = 0;
+  double time_ms = 0;
+  DegeneracyReport degeneracy;
+  bool is_keyframe = false;
+};
+
+// A LiDAR frame: one or several scans (different sensors) processed as one update.
+struct LidarScanInput {
+  int sensor_id = 0;      // index into the extrinsics given to the constructor
+  const PointCloud* cloud = nullptr;  // sensor frame; stamp = first point; t per point
+};
+
+struct Keyframe {
+  TimestampNs t_ns = 0;
+  SE3 world_from_imu;
+  PointCloud cloud_in_imu;  // de-skewed to t_ns, in the IMU (body) frame
+};
+
+class LioOdometry {
+ public:
+  // `imu_from_lidar[k]` and time offsets (t_imu = t_lidar + offset) per sensor.
+  LioOdometry(const LioOptions& options,
+              const ImuNoise& imu_noise,
+              std::vector<SE3> imu_from_lidar,
+              std::vector<double> lidar_time_offsets_s);
+  ~LioOdometry();
+
+  // IMU samples must arrive in strictly increasing time; throws InputError otherwise.
+  void AddImu(const ImuSample& sample);
+  TimestampNs LatestImuTime() const;
+
+  // Processes one frame. Every point's absolute time must be covered by IMU
+  // data already added (otherwise the frame is skipped with a message).
+  LioFrameResult ProcessFrame(const std::vector<LidarScanInput>& scans);
+
+  bool initialized() const { return initialized_; }
+  const ImuInitialization& initialization() const { return init_; }
+  const VoxelMap& map() const { return *map_; }
+  // Keyframes produced since the last call (moved out).
+  std::vector<Keyframe> TakeKeyframes();
+  // 18x18 covariance of the error state after the last update.
+  const Eigen::Matrix<double, 18, 18>& covariance() const { return P_; }
+  const Vec3& gyro_bias() const { return bg_; }
+  const Vec3& accel_bias() const { return ba_; }
+
+ private:
+  struct PoseSample {
+    TimestampNs t_ns;
+    Quat R;
+    Vec3 p, v, acc_world, omega;  // omega: bias-corrected body rate over the segment
+  };
+  bool TryInitialize();
+  // Propagates mean and covariance to t_ns using buffered IMU samples,
+  // appending pose samples for de-skew. Returns false if IMU does not cover t_ns.
+  bool PropagateTo(TimestampNs t_ns, std::vector<PoseSample>* history);
+  void PropagateStep(const Vec3& gyro, const Vec3& accel, double dt);
+
+  LioOptions options_;
+  ImuNoise imu_noise_;
+  std::vector<SE3> imu_from_lidar_;
+  std::vector<double> lidar_time_offsets_s_;
+  std::deque<ImuSample> imu_buffer_;   // samples not yet consumed by propagation
+  std::vector<ImuSample> init_samples_;
+  ImuSample last_imu_;                 // last sample consumed (for mid-point integration)
+  bool have_last_imu_ = false;
+  TimestampNs last_imu_time_ = INT64_MIN;
+  bool initialized_ = false;
+  ImuInitialization init_;
+
+  // State.
+  TimestampNs state_t_ns_ = 0;
+  Quat R_ = Quat::Identity();
+  Vec3 p_ = Vec3::Zero(), v_ = Vec3::Zero(), bg_ = Vec3::Zero(), ba_ = Vec3::Zero();
+  Vec3 g_ = Vec3(0, 0, -9.81);
+  Eigen::Matrix<double, 18, 18> P_;
+
+  std::unique_ptr<VoxelMap> map_;
+  bool map_initialized_ = false;
+  SE3 last_keyframe_pose_;
+  bool have_keyframe_ = false;
+  std::vector<Keyframe> keyframes_;
+};
+
+}  // namespace lisfm

@@ -1,0 +1,126 @@
+#include "lio/voxel_map.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "core/errors.h"
+
+namespace lisfm {
+
+bool VoxelMapOptions::Check() const {
+  return voxel_size > 0 && resolution >= 0 && resolution < voxel_size &&
+         max_points_per_voxel > 0 && max_voxels > 0;
+}
+
+VoxelMap::VoxelMap(const VoxelMapOptions& options)
+    : options_(options),
+      inv_voxel_size_(static_cast<float>(1.0 / options.voxel_size)),
+      min_sq_spacing_(static_cast<float>(options.resolution * options.resolution)) {
+  THROW_CHECK_MSG(options.Check(), "invalid VoxelMapOptions");
+  // Centre, 6 faces, 12 edges.
+  for (int dx = -1; dx <= 1; ++dx)
+    for (int dy = -1; dy <= 1; ++dy)
+      for (int dz = -1; dz <= 1; ++dz) {
+        const int n = std::abs(dx) + std::abs(dy) + std::abs(dz);
+        if (n <= 2) nearby_offsets_.push_back({dx, dy, dz});
+      }
+  std::sort(nearby_offsets_.begin(), nearby_offsets_.end(), [](const Key& a, const Key& b) {
+    return std::abs(a.x) + std::abs(a.y) + std::abs(a.z) < std::abs(b.x) + std::abs(b.y) + std::abs(b.z);
+  });
+}
+
+VoxelMap::Key VoxelMap::KeyOf(const Point& p) const {
+  return {static_cast<int32_t>(std::floor(p.x() * inv_voxel_size_)),
+          static_cast<int32_t>(std::floor(p.y() * inv_voxel_size_)),
+          static_cast<int32_t>(std::floor(p.z() * inv_voxel_size_))};
+}
+
+size_t VoxelMap::Insert(const std::vector<Point>& points) {
+  size_t stored = 0;
+  for (const Point& p : points) {
+    if (!p.allFinite()) continue;
+    const Key key = KeyOf(p);
+    auto it = grid_.find(key);
+    if (it == grid_.end()) {
+      lru_.push_front(key);
+      Voxel v;
+      v.lru_it = lru_.begin();
+      v.points.reserve(8);
+      v.points.push_back(p);
+      grid_.emplace(key, std::move(v));
+      ++num_points_;
+      ++stored;
+      if (grid_.size() > options_.max_voxels) {
+        const Key old = lru_.back();
+        lru_.pop_back();
+        auto old_it = grid_.find(old);
+        num_points_ -= old_it->second.points.size();
+        grid_.erase(old_it);
+      }
+      continue;
+    }
+    Voxel& v = it->second;
+    lru_.splice(lru_.begin(), lru_, v.lru_it);  // mark used
+    if (static_cast<int>(v.points.size()) >= options_.max_points_per_voxel) continue;
+    bool too_close = false;
+    for (const Point& q : v.points) {
+      if ((q - p).squaredNorm() < min_sq_spacing_) {
+        too_close = true;
+        break;
+      }
+    }
+    if (too_close) continue;
+    v.points.push_back(p);
+    ++num_points_;
+    ++stored;
+  }
+  return stored;
+}
+
+int VoxelMap::KnnSearch(const Point& query,
+                        int k,
+                        double max_distance,
+                        std::vector<Point>* neighbours,
+                        std::vector<float>* squared_distances) const {
+  // Small fixed-size insertion-sorted buffer: k is ~5.
+  constexpr int kMaxK = 32;
+  k = std::min(k, kMaxK);
+  float best_d[kMaxK];
+  const Point* best_p[kMaxK];
+  int found = 0;
+  const float max_sq = static_cast<float>(max_distance * max_distance);
+  const Key c = KeyOf(query);
+  for (const Key& o : nearby_offsets_) {
+    const auto it = grid_.find({c.x + o.x, c.y + o.y, c.z + o.z});
+    if (it == grid_.end()) continue;
+    for (const Point& p : it->second.points) {
+      const float d = (p - query).squaredNorm();
+      if (d > max_sq) continue;
+      if (found == k && d >= best_d[k - 1]) continue;
+      int i = (found < k) ? found++ : k - 1;
+      while (i > 0 && best_d[i - 1] > d) {
+        best_d[i] = best_d[i - 1];
+        best_p[i] = best_p[i - 1];
+        --i;
+      }
+      best_d[i] = d;
+      best_p[i] = &p;
+    }
+  }
+  neighbours->resize(found);
+  squared_distances->resize(found);
+  for (int i = 0; i < found; ++i) {
+    (*neighbours)[i] = *best_p[i];
+    (*squared_distances)[i] = best_d[i];
+  }
+  return found;
+}
+
+std::vector<VoxelMap::Point> VoxelMap::AllPoints() const {
+  std::vector<Point> all;
+  all.reserve(num_points_);
+  for (const auto& kv : grid_) all.insert(all.end(), kv.second.points.begin(), kv.second.points.end());
+  return all;
+}
+
+}  // namespace lisfm
