@@ -4,6 +4,8 @@
 // raw scans, body/IMU frame for de-skewed keyframes, world for maps).
 #pragma once
 
+#include <cmath>
+#include <cstddef>
 #include <cstdint>
 #include <vector>
 
@@ -37,11 +39,26 @@ Eigen::Matrix3Xd PositionsOf(const PointCloud& cloud);
 
 // Keeps one point per voxel of edge `voxel_size` (m): the point nearest to the
 // centroid of the voxel's points, so attributes (t, ring, intensity) stay real
-// measurements. voxel_size <= 0 returns the input. Deterministic order (by
-// first appearance). Points with non-finite coordinates are dropped.
+// measurements. voxel_size <= 0 (or NaN) returns the input unchanged.
+// Deterministic: voxels are emitted in order of their first point, and ties in
+// distance go to the earlier point. Points with non-finite coordinates are
+// dropped. Voxels are the cells [i, i+1) * voxel_size of a grid anchored at the
+// origin (coordinates beyond ~4.6e18 voxels are clamped to the outermost cell).
+// O(N): one hashing pass, then one linear pass over the points; no PCL.
 PointCloud VoxelDownsample(const PointCloud& cloud, double voxel_size);
 
-// Applies `target_from_source` to every point (attributes are kept).
+// True when x, y and z are finite (organised clouds mark missing returns NaN).
+inline bool IsFinite(const LidarPoint& p) {
+  return std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z);
+}
+
+// Removes, in place and keeping the order, every point whose x, y or z is NaN
+// or infinite (readers keep them so organised clouds keep their layout; call
+// this before kNN, ICP and the like). Returns the number of points removed.
+size_t RemoveNonFinite(PointCloud* cloud);
+
+// Applies `target_from_source` to every point (attributes and stamp are kept).
+// The product is formed in double and rounded to float once per coordinate.
 PointCloud TransformCloud(const PointCloud& cloud, const SE3& target_from_source);
 
 }  // namespace lisfm

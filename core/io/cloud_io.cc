@@ -1,1 +1,760 @@
-// cloud_io: filled in by the foundation work
+#include "core/io/cloud_io.h"
+
+#include <algorithm>
+#include <cctype>
+#include <cmath>
+#include <cstdlib>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <mutex>
+
+#include <fmt/format.h>
+
+#include <pcl/PCLPointCloud2.h>
+#include <pcl/console/print.h>
+#include <pcl/io/pcd_io.h>
+#include <pcl/io/ply_io.h>
+
+#include "core/errors.h"
+#include "core/file_utils.h"
+
+// PCD binary data is in host byte order (PCL memcpy's it) and our PLY files are
+// declared little endian; both writers memcpy native values.
+static_assert(__BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__, "cloud_io assumes a little-endian host");
+
+namespace lisfm {
+
+namespace {
+
+// Headers larger than this are not headers (PCL writes ~200 bytes).
+constexpr size_t kMaxHeaderBytes = 1 << 20;
+
+void SilencePcl() {
+  static std::once_flag once;
+  std::call_once(once, [] { pcl::console::setVerbosityLevel(pcl::console::L_ALWAYS); });
+}
+
+uint64_t FileSize(const std::string& path) {
+  CheckFileExists(path, "point cloud file");
+  std::error_code ec;
+  const uint64_t size = std::filesystem::file_size(path, ec);
+  if (ec) throw InputError(path, "", "cannot read the file size: " + ec.message());
+  if (size == 0) throw InputError(path, "", "empty file, expected a point cloud");
+  return size;
+}
+
+// Bytes [offset, offset + count) of the file, or fewer at its end.
+std::string ReadBytes(const std::string& path, uint64_t offset, uint64_t count) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw InputError(path, "", "cannot open for reading");
+  in.seekg(static_cast<std::streamoff>(offset));
+  std::string bytes(count, '\0');
+  in.read(bytes.data(), static_cast<std::streamsize>(count));
+  bytes.resize(static_cast<size_t>(std::max<std::streamsize>(in.gcount(), 0)));
+  return bytes;
+}
+
+// A header token quoted for an error message: printable, at most 40 chars.
+std::string Quote(const std::string& s) {
+  std::string out;
+  for (char c : s.substr(0, 40)) out.push_back(std::isprint(static_cast<unsigned char>(c)) ? c : '?');
+  return "'" + out + (s.size() > 40 ? "...'" : "'");
+}
+
+std::string Where(int line) { return "line " + std::to_string(line); }
+
+bool IsNumberToken(const std::string& token) {
+  if (token.empty()) return false;
+  char* end = nullptr;
+  std::strtod(token.c_str(), &end);
+  return end == token.c_str() + token.size();
+}
+
+bool IsIntegerToken(const std::string& token) {
+  size_t i = (!token.empty() && (token[0] == '-' || token[0] == '+')) ? 1 : 0;
+  if (i == token.size()) return false;
+  for (; i < token.size(); ++i) {
+    if (!std::isdigit(static_cast<unsigned char>(token[i]))) return false;
+  }
+  return true;
+}
+
+uint64_t ParseCount(const std::string& path, int line, const std::string& what, const std::string& token) {
+  int64_t value = 0;
+  if (!ParseInt64(token, &value) || value < 0 || value > int64_t{0xffffffff}) {
+    throw InputError(path, Where(line), what + ": expected an integer in [0, 2^32), found " + Quote(token));
+  }
+  return static_cast<uint64_t>(value);
+}
+
+// Splits `text` into lines (without "\r\n"); calls f(line, line_number,
+// offset_after_line) until f returns false. Returns false if the text ran out.
+template <typename F>
+bool ForEachLine(const std::string& text, size_t start, int first_line_number, F&& f) {
+  size_t pos = start;
+  int line_number = first_line_number;
+  while (pos < text.size()) {
+    size_t end = text.find('\n', pos);
+    const size_t next = (end == std::string::npos) ? text.size() : end + 1;
+    if (end == std::string::npos) end = text.size();
+    std::string line = text.substr(pos, end - pos);
+    if (!line.empty() && line.back() == '\r') line.pop_back();
+    if (!f(line, line_number, next)) return true;
+    pos = next;
+    ++line_number;
+  }
+  return false;
+}
+
+// ---------------------------------------------------------------------------
+// PCD header validation (PCD v0.7 spec, pointclouds.org "The PCD file format").
+
+struct PcdHeader {
+  std::vector<std::string> names;
+  std::vector<int> sizes;
+  std::vector<char> types;
+  std::vector<int> counts;
+  uint64_t width = 0, height = 1, points = 0;
+  std::string data;         // ascii | binary | binary_compressed
+  int data_line = 0;        // line number of DATA
+  uint64_t data_offset = 0;  // first byte after the DATA line
+  uint64_t point_bytes = 0;  // sum of SIZE * COUNT
+  uint64_t values_per_point = 0;  // sum of COUNT
+};
+
+PcdHeader ParsePcdHeader(const std::string& path, uint64_t file_size) {
+  const std::string head = ReadBytes(path, 0, std::min<uint64_t>(file_size, kMaxHeaderBytes));
+  PcdHeader h;
+  std::map<std::string, int> seen;  // keyword -> line
+  const bool found_data = ForEachLine(head, 0, 1, [&](const std::string& raw, int line, size_t next) {
+    const std::string text = Trim(raw);
+    if (text.empty() || text[0] == '#') return true;
+    const std::vector<std::string> tokens = SplitString(text, " \t");
+    std::string keyword = tokens[0];
+    if (keyword == "COLUMNS") keyword = "FIELDS";  // PCD v0.5 spelling
+    static const char* kKeywords[] = {
+        "VERSION", "FIELDS", "SIZE", "TYPE", "COUNT", "WIDTH", "HEIGHT", "VIEWPOINT", "POINTS", "DATA"};
+    if (std::find(std::begin(kKeywords), std::end(kKeywords), keyword) == std::end(kKeywords)) {
+      throw InputError(path, Where(line),
+                       "expected a PCD header keyword (VERSION, FIELDS, SIZE, TYPE, COUNT, WIDTH, "
+                       "HEIGHT, VIEWPOINT, POINTS, DATA), found " + Quote(text));
+    }
+    if (!seen.emplace(keyword, line).second) {
+      throw InputError(path, Where(line), keyword + " appears twice (first on line " +
+                                              std::to_string(seen[keyword]) + ")");
+    }
+    const std::vector<std::string> values(tokens.begin() + 1, tokens.end());
+    auto expect_one = [&]() {
+      if (values.size() != 1) {
+        throw InputError(path, Where(line), keyword + ": expected one value, found " +
+                                                std::to_string(values.size()));
+      }
+    };
+    if (keyword == "FIELDS") {
+      if (values.empty()) throw InputError(path, Where(line), "FIELDS: expected at least one field name");
+      h.names = values;
+    } else if (keyword == "SIZE" || keyword == "COUNT") {
+      std::vector<int>& out = keyword == "SIZE" ? h.sizes : h.counts;
+      for (const std::string& v : values) {
+        int64_t n = 0;
+        if (!ParseInt64(v, &n) || n < 1 || n > 1 << 20) {
+          throw InputError(path, Where(line), keyword + ": expected a positive integer, found " + Quote(v));
+        }
+        out.push_back(static_cast<int>(n));
+      }
+    } else if (keyword == "TYPE") {
+      for (const std::string& v : values) {
+        if (v != "F" && v != "I" && v != "U") {
+          throw InputError(path, Where(line), "TYPE: expected F, I or U, found " + Quote(v));
+        }
+        h.types.push_back(v[0]);
+      }
+    } else if (keyword == "WIDTH") {
+      expect_one();
+      h.width = ParseCount(path, line, "WIDTH", values[0]);
+    } else if (keyword == "HEIGHT") {
+      expect_one();
+      h.height = ParseCount(path, line, "HEIGHT", values[0]);
+    } else if (keyword == "POINTS") {
+      expect_one();
+      h.points = ParseCount(path, line, "POINTS", values[0]);
+    } else if (keyword == "VIEWPOINT") {
+      if (values.size() != 7 || !std::all_of(values.begin(), values.end(), IsNumberToken)) {
+        throw InputError(path, Where(line), "VIEWPOINT: expected 7 numbers (tx ty tz qw qx qy qz)");
+      }
+    } else if (keyword == "DATA") {
+      expect_one();
+      if (values[0] != "ascii" && values[0] != "binary" && values[0] != "binary_compressed") {
+        throw InputError(path, Where(line),
+                         "DATA: expected ascii, binary or binary_compressed, found " + Quote(values[0]));
+      }
+      h.data = values[0];
+      h.data_line = line;
+      h.data_offset = next;
+      return false;  // the body starts here
+    }
+    return true;
+  });
+  if (!found_data) {
+    throw InputError(path, "", head.size() < file_size
+                                   ? "no DATA line in the first 1 MiB (not a PCD file?)"
+                                   : "the header ends without a DATA line (not a PCD file?)");
+  }
+
+  // Consistency of the per-field lines.
+  auto line_of = [&](const std::string& keyword) { return seen.count(keyword) ? seen[keyword] : h.data_line; };
+  for (const char* required : {"FIELDS", "SIZE", "TYPE"}) {
+    if (!seen.count(required)) throw InputError(path, "", std::string("the header has no ") + required + " line");
+  }
+  if (h.counts.empty()) h.counts.assign(h.names.size(), 1);  // COUNT is optional
+  const size_t n = h.names.size();
+  auto check_length = [&](const std::string& keyword, size_t length) {
+    if (length != n) {
+      throw InputError(path, Where(line_of(keyword)),
+                       keyword + " has " + std::to_string(length) + " entries but FIELDS has " +
+                           std::to_string(n));
+    }
+  };
+  check_length("SIZE", h.sizes.size());
+  check_length("TYPE", h.types.size());
+  check_length("COUNT", h.counts.size());
+  for (size_t i = 0; i < n; ++i) {
+    const int s = h.sizes[i];
+    const bool ok = h.types[i] == 'F' ? (s == 4 || s == 8) : (s == 1 || s == 2 || s == 4 || s == 8);
+    if (!ok) {
+      throw InputError(path, Where(line_of("SIZE")),
+                       "field " + Quote(h.names[i]) + ": SIZE " + std::to_string(s) +
+                           " is not valid for TYPE " + h.types[i]);
+    }
+    h.point_bytes += static_cast<uint64_t>(s) * static_cast<uint64_t>(h.counts[i]);
+    h.values_per_point += static_cast<uint64_t>(h.counts[i]);
+  }
+
+  // Point count: WIDTH * HEIGHT, which POINTS (if given) must repeat.
+  if (!seen.count("WIDTH")) {
+    if (!seen.count("POINTS")) throw InputError(path, "", "the header has neither WIDTH nor POINTS");
+    h.width = h.points;
+  }
+  const uint64_t wh = h.width * h.height;
+  if (seen.count("POINTS") && h.points != wh) {
+    throw InputError(path, Where(seen["POINTS"]),
+                     "POINTS = " + std::to_string(h.points) + " but WIDTH * HEIGHT = " +
+                         std::to_string(h.width) + " * " + std::to_string(h.height));
+  }
+  h.points = wh;
+
+  // The body must hold that many points (and the size must not overflow).
+  if (h.point_bytes > 0 && h.points > (uint64_t{1} << 40) / h.point_bytes) {
+    throw InputError(path, Where(h.data_line), std::to_string(h.points) + " points of " +
+                                                   std::to_string(h.point_bytes) + " bytes exceed 1 TiB");
+  }
+  const uint64_t body_bytes = file_size - std::min(file_size, h.data_offset);
+  const uint64_t needed = h.points * h.point_bytes;
+  if (h.data == "binary" && body_bytes < needed) {
+    throw InputError(path, Where(h.data_line),
+                     "binary data is truncated: " + std::to_string(h.points) + " points of " +
+                         std::to_string(h.point_bytes) + " bytes need " + std::to_string(needed) +
+                         " bytes after the header, found " + std::to_string(body_bytes));
+  }
+  if (h.data == "binary_compressed" && h.points > 0) {
+    const std::string sizes = ReadBytes(path, h.data_offset, 8);
+    if (sizes.size() < 8) {
+      throw InputError(path, Where(h.data_line), "binary_compressed data is truncated (no size words)");
+    }
+    uint32_t compressed = 0, uncompressed = 0;
+    std::memcpy(&compressed, sizes.data(), 4);
+    std::memcpy(&uncompressed, sizes.data() + 4, 4);
+    if (body_bytes - 8 < compressed) {
+      throw InputError(path, Where(h.data_line),
+                       "binary_compressed data is truncated: " + std::to_string(compressed) +
+                           " compressed bytes announced, " + std::to_string(body_bytes - 8) + " present");
+    }
+    // LZF expands at most ~88x (a 3-byte back reference covers 264 bytes).
+    if (uncompressed != needed || needed > 128 * static_cast<uint64_t>(compressed) + 1024) {
+      throw InputError(path, Where(h.data_line),
+                       "binary_compressed data announces " + std::to_string(uncompressed) +
+                           " bytes from " + std::to_string(compressed) + " compressed bytes, expected " +
+                           std::to_string(needed) + " (" + std::to_string(h.points) + " points)");
+    }
+  }
+  return h;
+}
+
+// PCL reads any token of an ascii body (non-numbers become 0 or garbage) and
+// tolerates missing lines, so the body is checked here: POINTS lines of
+// sum(COUNT) numeric tokens, integers for I/U fields.
+void ValidatePcdAsciiBody(const std::string& path, const PcdHeader& h, uint64_t file_size) {
+  const std::string body = ReadBytes(path, h.data_offset, file_size - std::min(file_size, h.data_offset));
+  std::vector<bool> integer_value;
+  for (size_t i = 0; i < h.names.size(); ++i) {
+    for (int c = 0; c < h.counts[i]; ++c) integer_value.push_back(h.types[i] != 'F');
+  }
+  uint64_t points = 0;
+  ForEachLine(body, 0, h.data_line + 1, [&](const std::string& line, int line_number, size_t) {
+    const std::vector<std::string> tokens = SplitString(line, " \t\r");
+    if (tokens.empty()) return true;
+    if (points == h.points) {
+      throw InputError(path, Where(line_number),
+                       "more data lines than the " + std::to_string(h.points) + " points in the header");
+    }
+    if (tokens.size() != h.values_per_point) {
+      throw InputError(path, Where(line_number),
+                       "expected " + std::to_string(h.values_per_point) + " values, found " +
+                           std::to_string(tokens.size()));
+    }
+    for (size_t k = 0; k < tokens.size(); ++k) {
+      const bool ok = integer_value[k] ? IsIntegerToken(tokens[k]) : IsNumberToken(tokens[k]);
+      if (!ok) {
+        throw InputError(path, Where(line_number),
+                         std::string("value ") + std::to_string(k + 1) + ": expected " +
+                             (integer_value[k] ? "an integer" : "a number") + ", found " + Quote(tokens[k]));
+      }
+    }
+    ++points;
+    return true;
+  });
+  if (points != h.points) {
+    throw InputError(path, "", "DATA ascii: expected " + std::to_string(h.points) + " points, found " +
+                                   std::to_string(points) + " data lines");
+  }
+}
+
+// ---------------------------------------------------------------------------
+// PLY header validation (Paul Bourke's PLY spec).
+
+int PlyTypeSize(const std::string& type) {
+  if (type == "char" || type == "uchar" || type == "int8" || type == "uint8") return 1;
+  if (type == "short" || type == "ushort" || type == "int16" || type == "uint16") return 2;
+  if (type == "int" || type == "uint" || type == "int32" || type == "uint32" || type == "float" ||
+      type == "float32") {
+    return 4;
+  }
+  if (type == "double" || type == "float64") return 8;
+  return 0;
+}
+
+struct PlyElement {
+  std::string name;
+  uint64_t count = 0;
+  std::vector<std::string> properties;
+  std::vector<int> sizes;       // scalar size, or the list's count size
+  std::vector<bool> is_list;
+  std::vector<bool> is_integer;
+};
+
+struct PlyHeader {
+  std::string format;
+  std::vector<PlyElement> elements;
+  int end_line = 0;
+  uint64_t data_offset = 0;
+};
+
+PlyHeader ParsePlyHeader(const std::string& path, uint64_t file_size) {
+  const std::string head = ReadBytes(path, 0, std::min<uint64_t>(file_size, kMaxHeaderBytes));
+  PlyHeader h;
+  const bool ended = ForEachLine(head, 0, 1, [&](const std::string& raw, int line, size_t next) {
+    const std::string text = Trim(raw);
+    if (line == 1) {
+      if (text != "ply") throw InputError(path, Where(1), "expected the PLY magic 'ply', found " + Quote(text));
+      return true;
+    }
+    const std::vector<std::string> tokens = SplitString(text, " \t");
+    if (tokens.empty()) throw InputError(path, Where(line), "empty header line");
+    const std::string& keyword = tokens[0];
+    if (keyword == "comment" || keyword == "obj_info") return true;
+    if (keyword == "end_header") {
+      h.end_line = line;
+      h.data_offset = next;
+      return false;
+    }
+    if (keyword == "format") {
+      if (tokens.size() != 3 || tokens[2] != "1.0" ||
+          (tokens[1] != "ascii" && tokens[1] != "binary_little_endian" && tokens[1] != "binary_big_endian")) {
+        throw InputError(path, Where(line),
+                         "expected 'format ascii|binary_little_endian|binary_big_endian 1.0', found " +
+                             Quote(text));
+      }
+      h.format = tokens[1];
+    } else if (keyword == "element") {
+      if (tokens.size() != 3) throw InputError(path, Where(line), "expected 'element <name> <count>', found " + Quote(text));
+      PlyElement e;
+      e.name = tokens[1];
+      e.count = ParseCount(path, line, "element " + e.name, tokens[2]);
+      h.elements.push_back(e);
+    } else if (keyword == "property") {
+      if (h.elements.empty()) throw InputError(path, Where(line), "property before any element");
+      PlyElement& e = h.elements.back();
+      const bool list = tokens.size() == 5 && tokens[1] == "list";
+      const std::string& type = list ? tokens[2] : (tokens.size() > 1 ? tokens[1] : "");
+      const int size = PlyTypeSize(type);
+      if ((!list && tokens.size() != 3) || size == 0 || (list && PlyTypeSize(tokens[3]) == 0)) {
+        throw InputError(path, Where(line),
+                         "expected 'property <type> <name>' or 'property list <type> <type> <name>' "
+                         "with PLY types, found " + Quote(text));
+      }
+      e.properties.push_back(tokens.back());
+      e.sizes.push_back(size);
+      e.is_list.push_back(list);
+      e.is_integer.push_back(type.find("float") == std::string::npos && type != "double");
+    } else {
+      throw InputError(path, Where(line), "expected a PLY header keyword, found " + Quote(text));
+    }
+    return true;
+  });
+  if (!ended) throw InputError(path, "", "the header ends without 'end_header' (not a PLY file?)");
+  if (h.format.empty()) throw InputError(path, "", "the header has no 'format' line");
+  const auto vertex = std::find_if(h.elements.begin(), h.elements.end(),
+                                   [](const PlyElement& e) { return e.name == "vertex"; });
+  if (vertex == h.elements.end()) throw InputError(path, "", "the header has no 'element vertex'");
+  for (const char* axis : {"x", "y", "z"}) {
+    if (std::find(vertex->properties.begin(), vertex->properties.end(), axis) == vertex->properties.end()) {
+      throw InputError(path, "", std::string("element vertex has no property ") + axis);
+    }
+  }
+  if (h.format != "ascii") {
+    // Lower bound on the body size (lists count only their length word).
+    uint64_t needed = 0;
+    for (const PlyElement& e : h.elements) {
+      uint64_t bytes = 0;
+      for (int s : e.sizes) bytes += static_cast<uint64_t>(s);
+      needed += e.count * bytes;
+    }
+    const uint64_t body_bytes = file_size - std::min(file_size, h.data_offset);
+    if (body_bytes < needed) {
+      throw InputError(path, Where(h.end_line),
+                       "binary data is truncated: the header's elements need at least " +
+                           std::to_string(needed) + " bytes, found " + std::to_string(body_bytes));
+    }
+  }
+  return h;
+}
+
+// PCL's ascii PLY parser accepts non-numeric tokens; check the vertex lines
+// when they come first (the usual layout) and hold only scalar properties.
+void ValidatePlyAsciiVertices(const std::string& path, const PlyHeader& h, uint64_t file_size) {
+  const PlyElement& vertex = h.elements.front();
+  if (vertex.name != "vertex" ||
+      std::find(vertex.is_list.begin(), vertex.is_list.end(), true) != vertex.is_list.end()) {
+    return;  // PCL's own checks apply
+  }
+  const std::string body = ReadBytes(path, h.data_offset, file_size - std::min(file_size, h.data_offset));
+  uint64_t points = 0;
+  ForEachLine(body, 0, h.end_line + 1, [&](const std::string& line, int line_number, size_t) {
+    if (points == vertex.count) return false;
+    const std::vector<std::string> tokens = SplitString(line, " \t\r");
+    if (tokens.size() != vertex.properties.size()) {
+      throw InputError(path, Where(line_number),
+                       "vertex " + std::to_string(points) + ": expected " +
+                           std::to_string(vertex.properties.size()) + " values, found " +
+                           std::to_string(tokens.size()));
+    }
+    for (size_t k = 0; k < tokens.size(); ++k) {
+      const bool ok = vertex.is_integer[k] ? IsIntegerToken(tokens[k]) : IsNumberToken(tokens[k]);
+      if (!ok) {
+        throw InputError(path, Where(line_number),
+                         "property " + vertex.properties[k] + ": expected " +
+                             (vertex.is_integer[k] ? "an integer" : "a number") + ", found " + Quote(tokens[k]));
+      }
+    }
+    ++points;
+    return true;
+  });
+  if (points != vertex.count) {
+    throw InputError(path, "", "expected " + std::to_string(vertex.count) + " vertex lines, found " +
+                                   std::to_string(points));
+  }
+}
+
+// ---------------------------------------------------------------------------
+// PCLPointCloud2 -> PointCloud, by field name.
+
+int DatatypeSize(uint8_t type) {
+  switch (type) {
+    case pcl::PCLPointField::INT8:
+    case pcl::PCLPointField::UINT8: return 1;
+    case pcl::PCLPointField::INT16:
+    case pcl::PCLPointField::UINT16: return 2;
+    case pcl::PCLPointField::INT32:
+    case pcl::PCLPointField::UINT32:
+    case pcl::PCLPointField::FLOAT32: return 4;
+    case pcl::PCLPointField::INT64:
+    case pcl::PCLPointField::UINT64:
+    case pcl::PCLPointField::FLOAT64: return 8;
+    default: return 0;
+  }
+}
+
+template <typename T>
+double Load(const uint8_t* p) {
+  T value;
+  std::memcpy(&value, p, sizeof(T));
+  return static_cast<double>(value);
+}
+
+double LoadValue(const uint8_t* p, uint8_t type) {
+  switch (type) {
+    case pcl::PCLPointField::INT8: return Load<int8_t>(p);
+    case pcl::PCLPointField::UINT8: return Load<uint8_t>(p);
+    case pcl::PCLPointField::INT16: return Load<int16_t>(p);
+    case pcl::PCLPointField::UINT16: return Load<uint16_t>(p);
+    case pcl::PCLPointField::INT32: return Load<int32_t>(p);
+    case pcl::PCLPointField::UINT32: return Load<uint32_t>(p);
+    case pcl::PCLPointField::INT64: return Load<int64_t>(p);
+    case pcl::PCLPointField::UINT64: return Load<uint64_t>(p);
+    case pcl::PCLPointField::FLOAT32: return Load<float>(p);
+    default: return Load<double>(p);  // FLOAT64; other types are rejected in FindField
+  }
+}
+
+struct FieldRef {
+  bool present = false;
+  uint32_t offset = 0;
+  uint8_t type = 0;
+};
+
+FieldRef FindField(const std::string& path, const pcl::PCLPointCloud2& blob, const std::string& name, bool required) {
+  FieldRef ref;
+  for (const pcl::PCLPointField& f : blob.fields) {
+    if (f.name != name) continue;
+    const int size = DatatypeSize(f.datatype);
+    if (size == 0) {
+      throw InputError(path, "field " + name, "unsupported data type " + std::to_string(f.datatype));
+    }
+    if (f.count != 1) {
+      throw InputError(path, "field " + name, "expected COUNT 1, found " + std::to_string(f.count));
+    }
+    if (f.offset + static_cast<uint32_t>(size) > blob.point_step) {
+      throw InputError(path, "field " + name, "lies outside the point record");
+    }
+    ref.present = true;
+    ref.offset = f.offset;
+    ref.type = f.datatype;
+    return ref;
+  }
+  if (required) {
+    std::string names;
+    for (const pcl::PCLPointField& f : blob.fields) names += (names.empty() ? "" : " ") + f.name;
+    throw InputError(path, "", "no field '" + name + "' (the file has: " + names + ")");
+  }
+  return ref;
+}
+
+PointCloud CloudFromBlob(const std::string& path, const pcl::PCLPointCloud2& blob) {
+  if (blob.is_bigendian) throw InputError(path, "", "big-endian point data is not supported");
+  const uint64_t width = blob.width, height = blob.height;
+  if (height > 0 && (blob.row_step < width * blob.point_step ||
+                     blob.data.size() < (height - 1) * blob.row_step + width * blob.point_step)) {
+    throw InputError(path, "", "PCL returned fewer data bytes than WIDTH * HEIGHT points need");
+  }
+  const FieldRef x = FindField(path, blob, "x", true);
+  const FieldRef y = FindField(path, blob, "y", true);
+  const FieldRef z = FindField(path, blob, "z", true);
+  const FieldRef intensity = FindField(path, blob, "intensity", false);
+  const FieldRef t = FindField(path, blob, "t", false);
+  const FieldRef ring = FindField(path, blob, "ring", false);
+  const FieldRef sensor_id = FindField(path, blob, "sensor_id", false);
+  if (t.present && t.type != pcl::PCLPointField::FLOAT32 && t.type != pcl::PCLPointField::FLOAT64) {
+    throw InputError(path, "field t",
+                     "expected float seconds since the scan stamp, found an integer type (e.g. Ouster "
+                     "nanoseconds); convert the file first");
+  }
+
+  PointCloud cloud;
+  cloud.points.resize(width * height);
+  for (uint64_t row = 0; row < height; ++row) {
+    for (uint64_t col = 0; col < width; ++col) {
+      const uint64_t index = row * width + col;
+      const uint8_t* record = blob.data.data() + row * blob.row_step + col * blob.point_step;
+      LidarPoint& p = cloud.points[index];
+      p.x = static_cast<float>(LoadValue(record + x.offset, x.type));
+      p.y = static_cast<float>(LoadValue(record + y.offset, y.type));
+      p.z = static_cast<float>(LoadValue(record + z.offset, z.type));
+      if (intensity.present) p.intensity = static_cast<float>(LoadValue(record + intensity.offset, intensity.type));
+      if (t.present) p.t = static_cast<float>(LoadValue(record + t.offset, t.type));
+      if (ring.present) {
+        const double v = LoadValue(record + ring.offset, ring.type);
+        if (!(v >= 0 && v <= 65535 && v == std::floor(v))) {
+          throw InputError(path, "record " + std::to_string(index),
+                           "ring = " + std::to_string(v) + ", expected an integer in [0, 65535]");
+        }
+        p.ring = static_cast<uint16_t>(v);
+      }
+      if (sensor_id.present) {
+        const double v = LoadValue(record + sensor_id.offset, sensor_id.type);
+        if (!(v >= 0 && v <= 255 && v == std::floor(v))) {
+          throw InputError(path, "record " + std::to_string(index),
+                           "sensor_id = " + std::to_string(v) + ", expected an integer in [0, 255]");
+        }
+        p.sensor_id = static_cast<uint8_t>(v);
+      }
+    }
+  }
+  return cloud;
+}
+
+// Empty clouds never reach PCL (it dereferences an empty mapping); the field
+// names still must include x y z.
+void CheckXyzNames(const std::string& path, const std::vector<std::string>& names) {
+  for (const char* axis : {"x", "y", "z"}) {
+    if (std::find(names.begin(), names.end(), axis) == names.end()) {
+      throw InputError(path, "", std::string("no field '") + axis + "'");
+    }
+  }
+}
+
+// ---------------------------------------------------------------------------
+// Writers.
+
+bool AnySensorId(const PointCloud& cloud) {
+  return std::any_of(cloud.points.begin(), cloud.points.end(),
+                     [](const LidarPoint& p) { return p.sensor_id != 0; });
+}
+
+template <typename T>
+void Append(std::string* out, T value) {
+  char bytes[sizeof(T)];
+  std::memcpy(bytes, &value, sizeof(T));
+  out->append(bytes, sizeof(T));
+}
+
+// x y z intensity t ring [sensor_id], packed (22 or 23 bytes per point).
+std::string PackPoints(const PointCloud& cloud, bool with_sensor_id) {
+  std::string out;
+  out.reserve(cloud.size() * (with_sensor_id ? 23 : 22));
+  for (const LidarPoint& p : cloud.points) {
+    Append(&out, p.x);
+    Append(&out, p.y);
+    Append(&out, p.z);
+    Append(&out, p.intensity);
+    Append(&out, p.t);
+    Append(&out, p.ring);
+    if (with_sensor_id) Append(&out, p.sensor_id);
+  }
+  return out;
+}
+
+// 9 significant digits restore every float32 exactly; NaN is written "nan".
+std::string FloatText(float v) {
+  if (std::isnan(v)) return "nan";
+  return fmt::format("{:.9g}", v);
+}
+
+std::string Lowercase(std::string s) {
+  for (char& c : s) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  return s;
+}
+
+}  // namespace
+
+PointCloud ReadPcd(const std::string& path) {
+  SilencePcl();
+  const uint64_t file_size = FileSize(path);
+  const PcdHeader header = ParsePcdHeader(path, file_size);
+  if (header.data == "ascii") ValidatePcdAsciiBody(path, header, file_size);
+  if (header.points == 0) {
+    CheckXyzNames(path, header.names);
+    return PointCloud();
+  }
+  pcl::PCLPointCloud2 blob;
+  Eigen::Vector4f origin;
+  Eigen::Quaternionf orientation;
+  int version = 0;
+  int status = -1;
+  try {
+    pcl::PCDReader reader;
+    status = reader.read(path, blob, origin, orientation, version, 0);
+  } catch (const std::exception& e) {
+    throw InputError(path, "", std::string("PCL could not read the file: ") + e.what());
+  } catch (...) {
+    throw InputError(path, "", "PCL could not read the file");
+  }
+  if (status != 0) throw InputError(path, "", "PCL could not read the file (corrupt data?)");
+  return CloudFromBlob(path, blob);
+}
+
+PointCloud ReadPly(const std::string& path) {
+  SilencePcl();
+  const uint64_t file_size = FileSize(path);
+  const PlyHeader header = ParsePlyHeader(path, file_size);
+  if (header.format == "ascii") ValidatePlyAsciiVertices(path, header, file_size);
+  const auto vertex = std::find_if(header.elements.begin(), header.elements.end(),
+                                   [](const PlyElement& e) { return e.name == "vertex"; });
+  if (vertex->count == 0) return PointCloud();
+  pcl::PCLPointCloud2 blob;
+  Eigen::Vector4f origin;
+  Eigen::Quaternionf orientation;
+  int version = 0;
+  int status = -1;
+  try {
+    pcl::PLYReader reader;
+    status = reader.read(path, blob, origin, orientation, version, 0);
+  } catch (const std::exception& e) {
+    throw InputError(path, "", std::string("PCL could not read the file: ") + e.what());
+  } catch (...) {
+    throw InputError(path, "", "PCL could not read the file");
+  }
+  if (status != 0) throw InputError(path, "", "PCL could not parse the PLY data (truncated or malformed)");
+  if (static_cast<uint64_t>(blob.width) * blob.height != vertex->count) {
+    throw InputError(path, "", "PCL read " + std::to_string(blob.width * blob.height) +
+                                   " vertices, the header declares " + std::to_string(vertex->count));
+  }
+  return CloudFromBlob(path, blob);
+}
+
+void WritePcd(const std::string& path, const PointCloud& cloud, bool binary) {
+  const bool with_sensor_id = AnySensorId(cloud);
+  const std::string n = std::to_string(cloud.size());
+  std::string text =
+      "# .PCD v0.7 - Point Cloud Data file format (lisfm; t = seconds since the scan stamp)\n"
+      "VERSION 0.7\n";
+  text += with_sensor_id ? "FIELDS x y z intensity t ring sensor_id\nSIZE 4 4 4 4 4 2 1\n"
+                           "TYPE F F F F F U U\nCOUNT 1 1 1 1 1 1 1\n"
+                         : "FIELDS x y z intensity t ring\nSIZE 4 4 4 4 4 2\n"
+                           "TYPE F F F F F U\nCOUNT 1 1 1 1 1 1\n";
+  text += "WIDTH " + n + "\nHEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS " + n + "\n";
+  if (binary) {
+    text += "DATA binary\n";
+    text += PackPoints(cloud, with_sensor_id);
+  } else {
+    text += "DATA ascii\n";
+    for (const LidarPoint& p : cloud.points) {
+      text += FloatText(p.x) + ' ' + FloatText(p.y) + ' ' + FloatText(p.z) + ' ' + FloatText(p.intensity) +
+              ' ' + FloatText(p.t) + ' ' + std::to_string(p.ring);
+      if (with_sensor_id) text += ' ' + std::to_string(p.sensor_id);
+      text += '\n';
+    }
+  }
+  WriteFileAtomically(path, text);
+}
+
+void WritePly(const std::string& path, const PointCloud& cloud) {
+  const bool with_sensor_id = AnySensorId(cloud);
+  std::string text =
+      "ply\nformat binary_little_endian 1.0\n"
+      "comment lisfm point cloud; t = seconds since the scan stamp\n"
+      "element vertex " + std::to_string(cloud.size()) + "\n"
+      "property float x\nproperty float y\nproperty float z\nproperty float intensity\n"
+      "property float t\nproperty ushort ring\n";
+  if (with_sensor_id) text += "property uchar sensor_id\n";
+  text += "end_header\n";
+  text += PackPoints(cloud, with_sensor_id);
+  WriteFileAtomically(path, text);
+}
+
+PointCloud ReadPointCloud(const std::string& path) {
+  const std::string extension = Lowercase(std::filesystem::path(path).extension().string());
+  if (extension == ".pcd") return ReadPcd(path);
+  if (extension == ".ply") return ReadPly(path);
+  throw InputError(path, "", "unknown point cloud extension " + Quote(extension) + ", expected .pcd or .ply");
+}
+
+void WritePointCloud(const std::string& path, const PointCloud& cloud) {
+  const std::string extension = Lowercase(std::filesystem::path(path).extension().string());
+  if (extension == ".pcd") return WritePcd(path, cloud);
+  if (extension == ".ply") return WritePly(path, cloud);
+  throw InputError(path, "", "unknown point cloud extension " + Quote(extension) + ", expected .pcd or .ply");
+}
+
+}  // namespace lisfm

@@ -1,0 +1,446 @@
+#include "core/io/cloud_io.h"
+
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <functional>
+#include <limits>
+#include <map>
+#include <sstream>
+#include <string>
+
+#include <gtest/gtest.h>
+
+#include "core/errors.h"
+#include "core/file_utils.h"
+#include "tests/common/test_utils.h"
+
+namespace lisfm {
+namespace {
+
+// A cloud whose attributes exercise float32 exactly: random values over many
+// magnitudes, a denormal, -0, the float extremes, the full ring range.
+PointCloud RandomCloud(size_t n, bool with_sensor_id) {
+  std::uniform_real_distribution<float> u(-100.f, 100.f);
+  std::uniform_real_distribution<float> t(0.f, 0.1f);
+  std::uniform_int_distribution<int> ring(0, 65535);
+  std::uniform_int_distribution<int> sensor(0, 255);
+  PointCloud cloud;
+  cloud.stamp_ns = 1646307131123456789LL;
+  for (size_t i = 0; i < n; ++i) {
+    LidarPoint p;
+    const float scale = std::pow(10.f, static_cast<float>(static_cast<int>(i % 9) - 4));
+    p.x = u(test::Rng()) * scale;
+    p.y = u(test::Rng());
+    p.z = u(test::Rng()) / 3.f;
+    p.intensity = std::abs(u(test::Rng())) * 2.55f;
+    p.t = t(test::Rng());
+    p.ring = static_cast<uint16_t>(ring(test::Rng()));
+    p.sensor_id = with_sensor_id ? static_cast<uint8_t>(sensor(test::Rng())) : 0;
+    cloud.points.push_back(p);
+  }
+  if (n >= 4) {
+    cloud.points[0].x = std::numeric_limits<float>::denorm_min();
+    cloud.points[0].y = -0.f;
+    cloud.points[1].x = std::numeric_limits<float>::max();
+    cloud.points[1].y = std::numeric_limits<float>::lowest();
+    cloud.points[1].z = std::numeric_limits<float>::min();
+    cloud.points[2].ring = 65535;
+    cloud.points[3].ring = 0;
+  }
+  return cloud;
+}
+
+bool SameFloat(float a, float b) {
+  if (std::isnan(a) || std::isnan(b)) return std::isnan(a) && std::isnan(b);
+  return std::memcmp(&a, &b, sizeof(float)) == 0;  // distinguishes -0 from 0
+}
+
+void ExpectSameCloud(const PointCloud& expected, const PointCloud& actual) {
+  ASSERT_EQ(expected.size(), actual.size());
+  for (size_t i = 0; i < expected.size(); ++i) {
+    const LidarPoint& a = expected.points[i];
+    const LidarPoint& b = actual.points[i];
+    EXPECT_TRUE(SameFloat(a.x, b.x)) << "point " << i << ": " << a.x << " vs " << b.x;
+    EXPECT_TRUE(SameFloat(a.y, b.y)) << "point " << i << ": " << a.y << " vs " << b.y;
+    EXPECT_TRUE(SameFloat(a.z, b.z)) << "point " << i << ": " << a.z << " vs " << b.z;
+    EXPECT_TRUE(SameFloat(a.intensity, b.intensity)) << "point " << i;
+    EXPECT_TRUE(SameFloat(a.t, b.t)) << "point " << i;
+    EXPECT_EQ(a.ring, b.ring) << "point " << i;
+    EXPECT_EQ(a.sensor_id, b.sensor_id) << "point " << i;
+  }
+}
+
+// The header lines of a PCD file up to DATA, read independently of cloud_io.
+std::map<std::string, std::string> PcdHeaderFields(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::map<std::string, std::string> fields;
+  std::string line;
+  while (std::getline(in, line)) {
+    if (line.empty() || line[0] == '#') continue;
+    const size_t space = line.find(' ');
+    fields[line.substr(0, space)] = space == std::string::npos ? "" : line.substr(space + 1);
+    if (line.rfind("DATA", 0) == 0) {
+      fields["@data_offset"] = std::to_string(static_cast<long long>(in.tellg()));
+      break;
+    }
+  }
+  return fields;
+}
+
+size_t PointsInHeader(const std::string& path) {
+  const auto h = PcdHeaderFields(path);
+  return std::stoul(h.at("WIDTH")) * std::stoul(h.at("HEIGHT"));
+}
+
+std::string Bytes(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::ostringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+void WriteBytes(const std::string& path, const std::string& bytes) {
+  std::ofstream out(path, std::ios::binary);
+  out << bytes;
+}
+
+// Runs `read` and expects exactly an InputError whose message names `path`
+// and contains `detail`.
+void ExpectInputError(const std::function<void()>& read, const std::string& path, const std::string& detail) {
+  try {
+    read();
+    ADD_FAILURE() << "no InputError for " << path;
+  } catch (const InputError& e) {
+    const std::string message = e.what();
+    EXPECT_NE(message.find(path), std::string::npos) << message;
+    EXPECT_NE(message.find(detail), std::string::npos) << "expected '" << detail << "' in: " << message;
+  } catch (const std::exception& e) {
+    ADD_FAILURE() << "expected InputError, got: " << e.what();
+  }
+}
+
+// ---------------------------------------------------------------------------
+// Round trips.
+
+TEST(CloudIo, PcdBinaryRoundTripIsExact) {
+  test::TempDir dir;
+  for (bool with_sensor_id : {false, true}) {
+    const PointCloud cloud = RandomCloud(1000, with_sensor_id);
+    const std::string path = dir.File("scan.pcd");
+    WritePcd(path, cloud);
+    const auto header = PcdHeaderFields(path);
+    EXPECT_EQ(header.at("DATA"), "binary");
+    EXPECT_EQ(header.at("FIELDS"), with_sensor_id ? "x y z intensity t ring sensor_id" : "x y z intensity t ring");
+    const PointCloud back = ReadPcd(path);
+    EXPECT_EQ(back.stamp_ns, 0);  // the stamp lives in the file name
+    ExpectSameCloud(cloud, back);
+  }
+}
+
+TEST(CloudIo, PcdAsciiRoundTripIsExact) {
+  test::TempDir dir;
+  for (bool with_sensor_id : {false, true}) {
+    PointCloud cloud = RandomCloud(1000, with_sensor_id);
+    cloud.points[5].x = std::numeric_limits<float>::quiet_NaN();  // organised-cloud gaps survive
+    const std::string path = dir.File("scan.pcd");
+    WritePcd(path, cloud, /*binary=*/false);
+    EXPECT_EQ(PcdHeaderFields(path).at("DATA"), "ascii");
+    ExpectSameCloud(cloud, ReadPcd(path));
+  }
+}
+
+TEST(CloudIo, PlyRoundTripIsExact) {
+  test::TempDir dir;
+  for (bool with_sensor_id : {false, true}) {
+    const PointCloud cloud = RandomCloud(1000, with_sensor_id);
+    const std::string path = dir.File("scan.ply");
+    WritePly(path, cloud);
+    EXPECT_EQ(Bytes(path).rfind("ply\nformat binary_little_endian 1.0\n", 0), 0u);
+    ExpectSameCloud(cloud, ReadPly(path));
+  }
+}
+
+TEST(CloudIo, EmptyCloudRoundTrips) {
+  test::TempDir dir;
+  for (const std::string name : {"empty.pcd", "empty.ply"}) {
+    WritePointCloud(dir.File(name), PointCloud());
+    EXPECT_TRUE(ReadPointCloud(dir.File(name)).empty()) << name;
+  }
+  WritePcd(dir.File("empty_ascii.pcd"), PointCloud(), false);
+  EXPECT_TRUE(ReadPcd(dir.File("empty_ascii.pcd")).empty());
+}
+
+TEST(CloudIo, DispatchOnExtensionIsCaseInsensitiveAndAtomic) {
+  test::TempDir dir;
+  const PointCloud cloud = RandomCloud(50, true);
+  for (const std::string name : {"a.pcd", "b.PLY", "c.Pcd"}) {
+    WritePointCloud(dir.File(name), cloud);
+    ExpectSameCloud(cloud, ReadPointCloud(dir.File(name)));
+  }
+  // Only the three outputs exist: no temporary files are left behind.
+  size_t files = 0;
+  for (const auto& entry : std::filesystem::directory_iterator(dir.path())) {
+    (void)entry;
+    ++files;
+  }
+  EXPECT_EQ(files, 3u);
+  ExpectInputError([&] { WritePointCloud(dir.File("d.xyz"), cloud); }, dir.File("d.xyz"), "extension");
+  ExpectInputError([&] { WritePcd(dir.File("no/such/dir/e.pcd"), cloud); }, dir.File("no/such/dir/e.pcd"),
+                   "cannot open");
+}
+
+// ---------------------------------------------------------------------------
+// Other writers' files.
+
+TEST(CloudIo, ReadsForeignFieldSets) {
+  test::TempDir dir;
+  // rgb only, double coordinates, uint8 ring, an extra COUNT 3 field, a comment.
+  const std::string pcd = dir.File("foreign.pcd");
+  test::WriteText(pcd,
+                  "# made by hand\nVERSION 0.7\nFIELDS rgb x y z ring extra\nSIZE 4 8 8 8 1 4\n"
+                  "TYPE F F F F U F\nCOUNT 1 1 1 1 1 3\nWIDTH 2\nHEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\n"
+                  "POINTS 2\nDATA ascii\n"
+                  "4.2108e+06 1.5 -2.25 0.125 7 1 2 3\n"
+                  "0 nan nan nan 0 0 0 0\n");
+  const PointCloud a = ReadPcd(pcd);
+  ASSERT_EQ(a.size(), 2u);
+  EXPECT_EQ(a.points[0].xyz(), Eigen::Vector3f(1.5f, -2.25f, 0.125f));
+  EXPECT_EQ(a.points[0].ring, 7);
+  EXPECT_EQ(a.points[0].intensity, 0.f);  // missing -> 0
+  EXPECT_EQ(a.points[0].t, 0.f);
+  EXPECT_FALSE(IsFinite(a.points[1]));  // kept on read
+
+  // An organised ascii cloud (HEIGHT 2) keeps every point in row-major order.
+  const std::string organised = dir.File("organised.pcd");
+  test::WriteText(organised,
+                  "VERSION .5\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH 2\nHEIGHT 2\n"
+                  "POINTS 4\nDATA ascii\n1 0 0\nnan nan nan\n3 0 0\n4 0 0\n");
+  PointCloud b = ReadPcd(organised);
+  ASSERT_EQ(b.size(), 4u);
+  EXPECT_EQ(b.points[3].x, 4.f);
+  EXPECT_EQ(RemoveNonFinite(&b), 1u);
+
+  // An ascii PLY mesh: uchar intensity, a face element (ignored).
+  const std::string ply = dir.File("mesh.ply");
+  test::WriteText(ply,
+                  "ply\nformat ascii 1.0\ncomment hand made\nelement vertex 3\nproperty float x\n"
+                  "property float y\nproperty float z\nproperty uchar intensity\nelement face 1\n"
+                  "property list uchar int vertex_indices\nend_header\n"
+                  "0 0 0 10\n1 0 0 20\n0 1 0 255\n3 0 1 2\n");
+  const PointCloud c = ReadPly(ply);
+  ASSERT_EQ(c.size(), 3u);
+  EXPECT_EQ(c.points[2].intensity, 255.f);
+  EXPECT_EQ(c.points[1].x, 1.f);
+}
+
+TEST(CloudIo, ReadsFilesWrittenByPcl) {
+  // tests/data/clouds/README.md: point i = (0.25 i, -0.5 i, 0.125 i + 1), intensity i.
+  for (const std::string name : {"pcl_xyzi_binary.ply", "pcl_xyzi_ascii.ply", "pcl_xyzi_compressed.pcd"}) {
+    const PointCloud cloud = ReadPointCloud(test::SourceDir() + "/tests/data/clouds/" + name);
+    ASSERT_EQ(cloud.size(), 20u) << name;
+    for (size_t i = 0; i < cloud.size(); ++i) {
+      const float f = static_cast<float>(i);  // all values are exact in float32
+      EXPECT_EQ(cloud.points[i].xyz(), Eigen::Vector3f(0.25f * f, -0.5f * f, 0.125f * f + 1)) << name;
+      EXPECT_EQ(cloud.points[i].intensity, f) << name;
+      EXPECT_EQ(cloud.points[i].t, 0.f) << name;
+    }
+  }
+}
+
+// ---------------------------------------------------------------------------
+// Real files: counts are checked against the headers, parsed here independently.
+
+TEST(CloudIoRealData, PclBunniesAscii) {
+  LISFM_REQUIRE_SHARED_DATA("pointclouds_pcl/bun0.pcd");
+  for (const std::string name : {"pointclouds_pcl/bun0.pcd", "pointclouds_pcl/bun4.pcd"}) {
+    const std::string path = test::SharedData(name);
+    const PointCloud cloud = ReadPointCloud(path);
+    EXPECT_EQ(cloud.size(), PointsInHeader(path)) << name;
+    // The first point equals the first data line of the file.
+    std::ifstream in(path);
+    std::string line;
+    while (std::getline(in, line) && line.rfind("DATA", 0) != 0) {
+    }
+    float x = 0, y = 0, z = 0;
+    in >> x >> y >> z;
+    EXPECT_EQ(cloud.points[0].xyz(), Eigen::Vector3f(x, y, z)) << name;
+  }
+  EXPECT_EQ(ReadPcd(test::SharedData("pointclouds_pcl/bun0.pcd")).size(), 397u);  // README table
+  EXPECT_EQ(ReadPcd(test::SharedData("pointclouds_pcl/bun4.pcd")).size(), 361u);
+}
+
+TEST(CloudIoRealData, LidarPairBinary) {
+  LISFM_REQUIRE_SHARED_DATA("registration_lidar_pair/251370668.pcd");
+  for (const std::string name : {"registration_lidar_pair/251370668.pcd", "registration_lidar_pair/251371071.pcd"}) {
+    const std::string path = test::SharedData(name);
+    const PointCloud cloud = ReadPcd(path);
+    ASSERT_EQ(cloud.size(), PointsInHeader(path)) << name;
+    // Binary x y z intensity float32: compare the last record byte for byte.
+    const std::string bytes = Bytes(path);
+    const size_t offset = std::stoul(PcdHeaderFields(path).at("@data_offset")) + (cloud.size() - 1) * 16;
+    float raw[4];
+    std::memcpy(raw, bytes.data() + offset, sizeof(raw));
+    const LidarPoint& last = cloud.points.back();
+    EXPECT_EQ(last.xyz(), Eigen::Vector3f(raw[0], raw[1], raw[2])) << name;
+    EXPECT_EQ(last.intensity, raw[3]) << name;
+    EXPECT_EQ(last.t, 0.f);
+  }
+}
+
+TEST(CloudIoRealData, BalmScanWithNormals) {
+  LISFM_REQUIRE_SHARED_DATA("lidar_balm_realworld_subset/scans/full30.pcd");
+  const std::string path = test::SharedData("lidar_balm_realworld_subset/scans/full30.pcd");
+  const PointCloud cloud = ReadPcd(path);
+  ASSERT_EQ(cloud.size(), PointsInHeader(path));
+  size_t lit = 0;
+  for (const LidarPoint& p : cloud.points) lit += p.intensity != 0;
+  EXPECT_GT(lit, cloud.size() / 2);  // the intensity field was found
+}
+
+TEST(CloudIoRealData, OrganisedBinaryCompressedKeepsNaN) {
+  LISFM_REQUIRE_SHARED_DATA("pointclouds_pcl/office1.pcd");
+  const std::string path = test::SharedData("pointclouds_pcl/office1.pcd");
+  PointCloud cloud = ReadPcd(path);
+  ASSERT_EQ(cloud.size(), PointsInHeader(path));
+  EXPECT_EQ(cloud.size(), 640u * 480u);
+  const size_t removed = RemoveNonFinite(&cloud);
+  EXPECT_GT(removed, 0u);  // a Kinect frame has invalid pixels
+  EXPECT_GT(cloud.size(), 0u);
+}
+
+// ---------------------------------------------------------------------------
+// Bad input: one InputError naming the file, never a crash.
+
+std::string ValidPcdHeader(const std::string& fields,
+                           const std::string& size,
+                           const std::string& type,
+                           size_t points,
+                           const std::string& data) {
+  const std::string n = std::to_string(points);
+  std::string count = "1";
+  for (char c : fields) count += c == ' ' ? " 1" : "";
+  return "VERSION 0.7\nFIELDS " + fields + "\nSIZE " + size + "\nTYPE " + type + "\nCOUNT " + count +
+         "\nWIDTH " + n + "\nHEIGHT 1\nPOINTS " + n + "\nDATA " +
+         data + "\n";
+}
+
+TEST(CloudIoBadInput, MissingEmptyAndGarbage) {
+  test::TempDir dir;
+  ExpectInputError([&] { ReadPcd(dir.File("missing.pcd")); }, dir.File("missing.pcd"), "not found");
+  ExpectInputError([&] { ReadPly(dir.File("missing.ply")); }, dir.File("missing.ply"), "not found");
+  for (const std::string name : {"empty.pcd", "empty.ply"}) {
+    WriteBytes(dir.File(name), "");
+    ExpectInputError([&] { ReadPointCloud(dir.File(name)); }, dir.File(name), "empty file");
+  }
+  test::WriteText(dir.File("text.pcd"), "garbage\n");
+  ExpectInputError([&] { ReadPcd(dir.File("text.pcd")); }, dir.File("text.pcd"), "line 1");
+  test::WriteText(dir.File("comments.pcd"), "# only a comment\n");
+  ExpectInputError([&] { ReadPcd(dir.File("comments.pcd")); }, dir.File("comments.pcd"), "without a DATA line");
+  std::string noise(4096, '\0');
+  for (char& c : noise) c = static_cast<char>(test::Rng()() & 0xff);
+  for (const std::string name : {"noise.pcd", "noise.ply"}) {
+    WriteBytes(dir.File(name), noise);
+    ExpectInputError([&] { ReadPointCloud(dir.File(name)); }, dir.File(name), "line 1");
+  }
+  test::WriteText(dir.File("cloud.xyz"), "1 2 3\n");
+  ExpectInputError([&] { ReadPointCloud(dir.File("cloud.xyz")); }, dir.File("cloud.xyz"), "extension");
+  ExpectInputError([&] { ReadPointCloud(dir.File("noextension")); }, dir.File("noextension"), "extension");
+}
+
+TEST(CloudIoBadInput, TruncatedBinaryPcdAndPly) {
+  test::TempDir dir;
+  const PointCloud cloud = RandomCloud(100, false);
+  WritePcd(dir.File("full.pcd"), cloud);
+  WritePly(dir.File("full.ply"), cloud);
+  for (const std::string ext : {"pcd", "ply"}) {
+    const std::string bytes = Bytes(dir.File("full." + ext));
+    const std::string path = dir.File("cut." + ext);
+    // Cut inside the data, at the end of the header, and inside the header.
+    for (size_t keep : {bytes.size() - 1, bytes.size() - 22 * 50, bytes.size() - 22 * 100, size_t{40}}) {
+      WriteBytes(path, bytes.substr(0, keep));
+      ExpectInputError([&] { ReadPointCloud(path); }, path, keep == 40 ? "" : "truncated");
+    }
+  }
+}
+
+TEST(CloudIoBadInput, TruncatedBinaryCompressedPcd) {
+  LISFM_REQUIRE_SHARED_DATA("pointclouds_pcl/office1.pcd");
+  test::TempDir dir;
+  const std::string bytes = Bytes(test::SharedData("pointclouds_pcl/office1.pcd"));
+  const std::string path = dir.File("office_cut.pcd");
+  WriteBytes(path, bytes.substr(0, bytes.size() / 2));
+  ExpectInputError([&] { ReadPcd(path); }, path, "truncated");
+  // Intact size words, corrupt LZF stream: PCL's decompressor must fail cleanly.
+  std::string corrupt = bytes;
+  const size_t data = std::stoul(PcdHeaderFields(test::SharedData("pointclouds_pcl/office1.pcd")).at("@data_offset"));
+  for (size_t i = data + 8; i < corrupt.size(); i += 7) corrupt[i] = static_cast<char>(0xff);
+  WriteBytes(path, corrupt);
+  ExpectInputError([&] { ReadPcd(path); }, path, "");
+}
+
+TEST(CloudIoBadInput, PcdHeaderMismatches) {
+  test::TempDir dir;
+  const std::string path = dir.File("bad.pcd");
+  auto expect = [&](const std::string& text, const std::string& detail) {
+    test::WriteText(path, text);
+    ExpectInputError([&] { ReadPcd(path); }, path, detail);
+  };
+  // FIELDS / SIZE / TYPE / COUNT lengths disagree.
+  expect(ValidPcdHeader("x y z intensity", "4 4 4", "F F F F", 1, "ascii") + "1 2 3 4\n",
+         "line 3: SIZE has 3 entries but FIELDS has 4");
+  expect(ValidPcdHeader("x y z intensity", "4 4 4 4", "F F F", 1, "ascii") + "1 2 3 4\n", "TYPE has 3 entries");
+  expect("FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1\nWIDTH 1\nDATA ascii\n1 2 3\n", "COUNT has 2 entries");
+  // Invalid values.
+  expect(ValidPcdHeader("x y z", "4 4 3", "F F F", 1, "ascii") + "1 2 3\n", "SIZE 3 is not valid for TYPE F");
+  expect(ValidPcdHeader("x y z", "4 4 4", "F F Q", 1, "ascii") + "1 2 3\n", "expected F, I or U");
+  expect(ValidPcdHeader("x y z", "4 4 4", "F F F", 1, "lzma") + "1 2 3\n", "expected ascii, binary");
+  expect("FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nWIDTH 2\nHEIGHT 1\nPOINTS 3\nDATA ascii\n1 2 3\n",
+         "line 6: POINTS = 3 but WIDTH * HEIGHT");
+  expect("FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nWIDTH -2\nDATA ascii\n", "line 4: WIDTH");
+  expect("FIELDS x y z\nFIELDS x y z\n", "line 2: FIELDS appears twice");
+  expect("SIZE 4 4 4\nTYPE F F F\nWIDTH 1\nDATA ascii\n1 2 3\n", "no FIELDS line");
+  // Ascii bodies.
+  expect(ValidPcdHeader("x y z", "4 4 4", "F F F", 2, "ascii") + "1 2 3\n", "expected 2 points, found 1");
+  expect(ValidPcdHeader("x y z", "4 4 4", "F F F", 1, "ascii") + "1 2 3\n4 5 6\n", "line 11: more data lines");
+  expect(ValidPcdHeader("x y z", "4 4 4", "F F F", 2, "ascii") + "1 2 3\n4 five 6\n",
+         "line 11: value 2: expected a number, found 'five'");
+  expect(ValidPcdHeader("x y z", "4 4 4", "F F F", 1, "ascii") + "1 2\n", "line 10: expected 3 values, found 2");
+  expect(ValidPcdHeader("x y z ring", "4 4 4 2", "F F F U", 1, "ascii") + "1 2 3 1.5\n", "expected an integer");
+  // Fields.
+  expect(ValidPcdHeader("a b c", "4 4 4", "F F F", 1, "ascii") + "1 2 3\n", "no field 'x'");
+  expect(ValidPcdHeader("a b c", "4 4 4", "F F F", 0, "ascii"), "no field 'x'");
+  expect(ValidPcdHeader("x y z t", "4 4 4 4", "F F F U", 1, "ascii") + "1 2 3 100000\n",
+         "field t: expected float seconds");
+  expect(ValidPcdHeader("x y z ring", "4 4 4 4", "F F F I", 1, "ascii") + "1 2 3 -1\n",
+         "record 0: ring = -1");
+  expect(ValidPcdHeader("x y z sensor_id", "4 4 4 2", "F F F U", 1, "ascii") + "1 2 3 256\n",
+         "sensor_id = 256");
+}
+
+TEST(CloudIoBadInput, PlyHeaderAndBody) {
+  test::TempDir dir;
+  const std::string path = dir.File("bad.ply");
+  auto expect = [&](const std::string& text, const std::string& detail) {
+    test::WriteText(path, text);
+    ExpectInputError([&] { ReadPly(path); }, path, detail);
+  };
+  const std::string xyz = "element vertex 2\nproperty float x\nproperty float y\nproperty float z\n";
+  expect("PLY\n", "line 1: expected the PLY magic");
+  expect("ply\nformat ascii 1.0\n" + xyz, "without 'end_header'");
+  expect("ply\n" + xyz + "end_header\n1 2 3\n4 5 6\n", "no 'format' line");
+  expect("ply\nformat ascii 2.0x\n", "line 2");
+  expect("ply\nformat ascii 1.0\nproperty float x\nend_header\n", "line 3: property before any element");
+  expect("ply\nformat ascii 1.0\nelement vertex 1\nproperty float128 x\nend_header\n", "line 4");
+  expect("ply\nformat ascii 1.0\nelement face 0\nend_header\n", "no 'element vertex'");
+  expect("ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\nend_header\n1 2\n",
+         "no property z");
+  expect("ply\nformat ascii 1.0\n" + xyz + "end_header\n1 2 3\n", "expected 2 vertex lines, found 1");
+  expect("ply\nformat ascii 1.0\n" + xyz + "end_header\n1 2 3\n4 5 foo\n", "line 9: property z");
+  expect("ply\nformat ascii 1.0\n" + xyz + "end_header\n1 2 3 4\n4 5 6\n", "line 8: vertex 0: expected 3 values");
+  expect("ply\nformat binary_little_endian 1.0\n" + xyz + "end_header\n" + std::string(20, 'a'), "truncated");
+}
+
+}  // namespace
+}  // namespace lisfm
