@@ -63,7 +63,9 @@ TEST(VoxelMap, InsertionKeepsMinimumSpacing) {
   for (size_t i = 0; i < stored.size(); ++i) {
     for (size_t j = i + 1; j < stored.size(); ++j) {
       const bool same_voxel = ((stored[i] / 0.5f).array().floor() == (stored[j] / 0.5f).array().floor()).all();
-      if (same_voxel) EXPECT_GE((stored[i] - stored[j]).norm(), 0.1f - 1e-6f);
+      if (same_voxel) {
+        EXPECT_GE((stored[i] - stored[j]).norm(), 0.1f - 1e-6f);
+      }
     }
   }
 }
