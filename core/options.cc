@@ -112,7 +112,8 @@ OptionManager::Entry& OptionManager::Register(const std::string& name,
 }
 
 void OptionManager::AddBool(const std::string& name, bool* value, const std::string& help) {
-  auto* opt = app_->add_option("--" + name, *value, help);
+  // COLMAP style `--name 0|1`; a bare `--name` means 1.
+  auto* opt = app_->add_option("--" + name, *value, help)->expected(0, 1)->default_str("1");
   Register(name, help, [value] { return std::string(*value ? "1" : "0"); }, opt);
 }
 
