@@ -50,6 +50,17 @@ TEST(Options, ParsesSectionNamesAndTypes) {
   EXPECT_TRUE(f.options.IsSet("Icp.max_distance"));
 }
 
+TEST(Options, BareBooleanMeansTrue) {
+  Fixture f;
+  Args a({"lisfm icp", "--Icp.use_flag", "--input_path", "x"});
+  ASSERT_TRUE(f.options.Parse(a.argc(), a.argv()));
+  EXPECT_TRUE(f.flag);
+  Fixture g;
+  Args b({"lisfm icp", "--Icp.use_flag", "0", "--input_path", "x"});
+  ASSERT_TRUE(g.options.Parse(b.argc(), b.argv()));
+  EXPECT_FALSE(g.flag);
+}
+
 TEST(Options, UnknownOptionSuggestsNearestName) {
   Fixture f;
   Args a({"lisfm icp", "--Icp.max_distanse", "0.25", "--input_path", "x"});

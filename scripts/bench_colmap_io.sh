@@ -1,0 +1,52 @@
+#!/usr/bin/env bash
+# Read + write of a synthetic COLMAP model (default 1000 images, 500k points,
+# track length 4) with `lisfm model_converter` and stock `colmap model_converter`
+# on the same files, side by side. Prints a table for docs/BENCHMARKS.md.
+#
+#   scripts/bench_colmap_io.sh [build_dir] [num_images] [num_points] [repeats]
+set -euo pipefail
+BUILD=${1:-build}
+IMAGES=${2:-1000}
+POINTS=${3:-500000}
+REPEATS=${4:-3}
+LISFM="$BUILD/apps/lisfm"
+SYNTH="$BUILD/colmap_ext/lisfm_colmap_synth"
+COLMAP=$(command -v colmap || true)
+for b in "$LISFM" "$SYNTH"; do
+  [ -x "$b" ] || { echo "error: $b not built (cmake --build $BUILD --target lisfm lisfm_colmap_synth)" >&2; exit 1; }
+done
+[ -n "$COLMAP" ] || echo "warning: stock colmap not found; only lisfm is timed" >&2
+export QT_QPA_PLATFORM=offscreen
+WORK=$(mktemp -d /tmp/bench_colmap_io.XXXXXX)
+trap 'rm -rf "$WORK"' EXIT
+
+"$SYNTH" "$WORK/bin" "$IMAGES" "$POINTS" 4 bin >/dev/null
+mkdir -p "$WORK/txt"
+"$LISFM" model_converter --input_path "$WORK/bin" --output_path "$WORK/txt" --output_type TXT --quiet 1
+
+# best-of-N wall time in seconds
+timeit() {
+  local best=""
+  for _ in $(seq "$REPEATS"); do
+    local t0 t1
+    t0=$(date +%s.%N); "$@" >/dev/null 2>&1; t1=$(date +%s.%N)
+    local dt; dt=$(echo "$t1 - $t0" | bc -l)
+    if [ -z "$best" ] || (( $(echo "$dt < $best" | bc -l) )); then best=$dt; fi
+  done
+  printf "%.2f" "$best"
+}
+
+printf "model: %s images, %s points, %s MB binary, %s MB text; best of %s runs\n" \
+  "$IMAGES" "$POINTS" "$(du -sm "$WORK/bin" | cut -f1)" "$(du -sm "$WORK/txt" | cut -f1)" "$REPEATS"
+printf "machine: %s cores, %s\n\n" "$(nproc)" "$(lscpu | sed -n 's/^Model name: *//p' | head -1)"
+printf "| conversion | lisfm (s) | colmap 3.8 (s) |\n|---|---|---|\n"
+for conv in "bin BIN" "bin TXT" "txt BIN" "txt TXT" "bin PLY"; do
+  set -- $conv
+  src="$WORK/$1"; type=$2
+  out="$WORK/out_$1_$type"; [ "$type" = PLY ] && out="$WORK/out_$1.ply"
+  mkdir -p "$WORK/out_$1_$type"
+  l=$(timeit "$LISFM" model_converter --input_path "$src" --output_path "$out" --output_type "$type" --quiet 1)
+  c="n/a"
+  [ -n "$COLMAP" ] && c=$(timeit "$COLMAP" model_converter --input_path "$src" --output_path "$out" --output_type "$type")
+  printf "| %s -> %s | %s | %s |\n" "$1" "$type" "$l" "$c"
+done
