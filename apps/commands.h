@@ -19,5 +19,11 @@ const std::vector<Command>& Commands();
 
 // Commands, one .cc per group.
 int RunEvaluate(int argc, char** argv);  // evaluate_command.cc
+int RunIcp(int argc, char** argv);       // icp_command.cc
+int RunModelConverter(int argc, char** argv);  // colmap_commands.cc
+int RunModelAnalyzer(int argc, char** argv);   // colmap_commands.cc
+int RunDatabaseInfo(int argc, char** argv);    // colmap_commands.cc
+int RunSimulate(int argc, char** argv);  // simulate_command.cc
+int RunLio(int argc, char** argv);       // lio_command.cc
 
 }  // namespace lisfm

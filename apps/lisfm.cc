@@ -17,8 +17,19 @@ namespace lisfm {
 
 const std::vector<Command>& Commands() {
   static const std::vector<Command> commands = {
+      {"simulate", "simulate a HILTI-style recording (IMU, LiDARs, cameras) with exact ground truth",
+       &RunSimulate},
+      {"lio", "LiDAR-inertial odometry (FAST-LIO2-style iterated EKF) on a sequence folder",
+       &RunLio},
       {"evaluate", "score a trajectory against ground truth (ATE, RPE, HILTI 2022 score)",
        &RunEvaluate},
+      {"icp", "register two clouds: point-to-plane or Bayesian ICP, with covariance", &RunIcp},
+      {"model_converter", "convert a COLMAP sparse model between BIN, TXT and PLY",
+       &RunModelConverter},
+      {"model_analyzer", "print COLMAP model statistics (as colmap model_analyzer)",
+       &RunModelAnalyzer},
+      {"database_info", "COLMAP database: schema, rows per table, pose priors",
+       &RunDatabaseInfo},
   };
   return commands;
 }

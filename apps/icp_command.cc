@@ -1,0 +1,169 @@
+// `lisfm icp`: registers a source cloud to a target cloud (PCD/PLY) with
+// point-to-plane ICP or Bayesian ICP and prints T_target_source, its 6x6
+// covariance (right perturbation, xi = [omega; v]), inliers, RMSE and timings.
+#include <chrono>
+#include <fstream>
+#include <iomanip>
+#include <iostream>
+#include <sstream>
+
+#include <fmt/format.h>
+
+#include "apps/commands.h"
+#include "core/errors.h"
+#include "core/file_utils.h"
+#include "core/io/cloud_io.h"
+#include "core/logging.h"
+#include "core/options.h"
+#include "icp/bayesian_icp.h"
+#include "icp/icp.h"
+#include "icp/icp_covariance.h"
+
+namespace lisfm {
+
+namespace {
+
+double Seconds(std::chrono::steady_clock::time_point a) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - a).count();
+}
+
+// A 4x4 matrix as 16 numbers (rows), the format of registration_lidar_pair/relative.txt.
+SE3 ReadTransform(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw InputError(path, "", "cannot open the initial transform file");
+  Mat4 m;
+  for (int i = 0; i < 16; ++i) {
+    if (!(in >> m(i / 4, i % 4))) {
+      throw InputError(path, fmt::format("value {}", i + 1),
+                       "expected 16 numbers (a 4x4 matrix, row by row), found fewer or a non-number");
+    }
+  }
+  const Mat3 R = m.topLeftCorner<3, 3>();
+  if (!m.allFinite() || (R.transpose() * R - Mat3::Identity()).norm() > 1e-3 ||
+      R.determinant() < 0) {
+    throw InputError(path, "rotation block", "expected a rotation matrix (orthonormal, det +1)");
+  }
+  const Eigen::JacobiSVD<Mat3> svd(R, Eigen::ComputeFullU | Eigen::ComputeFullV);
+  return SE3(Mat3(svd.matrixU() * svd.matrixV().transpose()), Vec3(m.topRightCorner<3, 1>()));
+}
+
+std::string FormatMatrix(const Eigen::MatrixXd& m, int precision) {
+  std::ostringstream s;
+  s << std::setprecision(precision);
+  for (Eigen::Index r = 0; r < m.rows(); ++r) {
+    for (Eigen::Index c = 0; c < m.cols(); ++c) s << (c ? " " : "") << m(r, c);
+    s << "\n";
+  }
+  return s.str();
+}
+
+PointSet LoadPoints(const std::string& path) {
+  size_t dropped = 0;
+  PointSet pts = FinitePointsOf(ReadPointCloud(path), &dropped);
+  if (dropped > 0) LogInfo("{}: dropped {} non-finite points", path, dropped);
+  if (pts.size() < 6) {
+    throw InputError(path, "", fmt::format("expected at least 6 finite points, found {}", pts.size()));
+  }
+  return pts;
+}
+
+}  // namespace
+
+int RunIcp(int argc, char** argv) {
+  OptionManager options("lisfm icp", "register a source cloud to a target cloud (PCD/PLY)");
+  std::string source_path, target_path, init_path, output_path, method = "point_to_plane";
+  double source_voxel_m = 0.25, target_voxel_m = 0.1;
+  NormalOptions normal_options;
+  BayesianIcpOptions bayes;
+  IcpOptions& icp = bayes.icp;
+  int seed = 1;
+  options.AddRequiredString("source_path", &source_path, "source cloud (.pcd/.ply)");
+  options.AddRequiredString("target_path", &target_path, "target cloud (.pcd/.ply)");
+  options.AddString("init_path", &init_path,
+                    "initial T_target_source: 4x4 matrix, 16 numbers row by row (default identity)");
+  options.AddChoice("method", &method, {"point_to_plane", "bayesian"}, "registration method");
+  options.AddString("output_path", &output_path,
+                    "folder for T_target_source.txt, covariance.txt and config.yaml (optional)");
+  options.AddDouble("Icp.source_voxel_size", &source_voxel_m, "source voxel downsampling (m, 0 = off)");
+  options.AddDouble("Icp.target_voxel_size", &target_voxel_m, "target voxel downsampling (m, 0 = off)");
+  options.AddInt("Icp.normal_neighbors", &normal_options.num_neighbors, "k of the PCA normals");
+  options.AddDouble("Icp.normal_radius", &normal_options.max_radius_m, "max neighbour distance for normals (m)");
+  options.AddInt("Icp.max_iterations", &icp.max_iterations, "Gauss-Newton iterations");
+  options.AddDouble("Icp.max_correspondence_distance", &icp.max_correspondence_distance_m,
+                    "reject matches farther than this (m)");
+  options.AddDouble("Icp.min_planarity", &icp.min_planarity, "ignore target points with lower planarity");
+  options.AddChoice("Icp.kernel", &icp.kernel, {"none", "huber", "cauchy", "geman_mcclure"},
+                    "robust kernel");
+  options.AddDouble("Icp.kernel_scale", &icp.kernel_scale_m, "robust kernel scale (m)");
+  options.AddDouble("Icp.convergence_rotation", &icp.convergence_rotation_rad, "step threshold (rad)");
+  options.AddDouble("Icp.convergence_translation", &icp.convergence_translation_m, "step threshold (m)");
+  options.AddDouble("Icp.degeneracy_threshold", &icp.degeneracy_threshold,
+                    "min/max eigenvalue ratio of the scaled Hessian");
+  options.AddInt("Bayesian.iterations", &bayes.sgld.num_iterations, "SGLD iterations");
+  options.AddInt("Bayesian.burn_in", &bayes.sgld.burn_in, "SGLD burn-in iterations");
+  options.AddInt("Bayesian.thinning", &bayes.sgld.thinning, "keep every k-th sample");
+  options.AddInt("Bayesian.batch_size", &bayes.sgld.batch_size, "correspondences per mini-batch");
+  options.AddDouble("Bayesian.step_size", &bayes.sgld.step_size, "SGLD step in the preconditioned metric (0, 2)");
+  options.AddDouble("Bayesian.noise_sigma", &bayes.noise_sigma_m, "likelihood sigma (m), 0 = from ICP residuals");
+  options.AddInt("Bayesian.seed", &seed, "random seed of the chain");
+  if (!options.Parse(argc, argv)) return 0;
+  bayes.sgld.seed = static_cast<uint64_t>(seed);
+  if (!icp.Check()) throw UsageError("invalid Icp.* options (see lisfm icp -h for ranges)");
+  if (!normal_options.Check()) throw UsageError("Icp.normal_neighbors must be >= 3 and Icp.normal_radius > 0");
+  if (method == "bayesian" && !bayes.sgld.Check()) {
+    throw UsageError("invalid Bayesian.* options (burn_in < iterations, 0 < step_size < 2, ...)");
+  }
+
+  const auto t0 = std::chrono::steady_clock::now();
+  const SE3 initial = init_path.empty() ? SE3() : ReadTransform(init_path);
+  const PointSet source_full = LoadPoints(source_path);
+  const PointSet target_full = LoadPoints(target_path);
+  const double load_s = Seconds(t0);
+  const auto t1 = std::chrono::steady_clock::now();
+  const PointSet source = VoxelDownsamplePoints(source_full, source_voxel_m);
+  const KdTreeTarget target(VoxelDownsamplePoints(target_full, target_voxel_m), normal_options);
+  const double prep_s = Seconds(t1);
+  const auto t2 = std::chrono::steady_clock::now();
+  IcpResult result;
+  Mat6 covariance;
+  std::string covariance_kind;
+  if (method == "bayesian") {
+    const BayesianIcpResult b = RegisterBayesian(source, target, initial, bayes);
+    result = b.icp;
+    result.target_from_source = b.posterior.mean;
+    covariance = b.posterior.covariance;
+    covariance_kind = fmt::format("Bayesian ICP posterior ({} SGLD samples)", b.posterior.num_samples);
+  } else {
+    result = RegisterPointToPlane(source, target, initial, icp);
+    covariance = ClosedFormCovariance(result);
+    covariance_kind = "closed form sigma^2 H^-1";
+  }
+  const double reg_s = Seconds(t2);
+
+  const std::string transform_text = FormatMatrix(result.target_from_source.Matrix(), 10);
+  const std::string covariance_text = FormatMatrix(covariance, 6);
+  std::cout << "T_target_source:\n" << transform_text << "covariance (" << covariance_kind
+            << ", xi = [omega; v], rad/m):\n" << covariance_text
+            << fmt::format("converged: {}\ndegenerate: {}\niterations: {}\ninliers: {}\nrmse_m: {:.6f}\n"
+                           "time_s: load {:.3f} preprocess {:.3f} registration {:.3f}\n",
+                           result.converged, result.degenerate, result.iterations,
+                           result.num_inliers, result.rmse_m, load_s, prep_s, reg_s);
+  if (!output_path.empty()) {
+    CreateDirs(output_path);
+    WriteFileAtomically(output_path + "/T_target_source.txt", transform_text);
+    WriteFileAtomically(output_path + "/covariance.txt", covariance_text);
+    options.WriteConfig(output_path + "/config.yaml");
+  }
+  LogInfo("icp ({}): {} source / {} target points after downsampling ({} / {} loaded), {} "
+          "inliers, RMSE {:.4f} m, {} iterations, {}{}; load {:.3f} s, preprocess {:.3f} s, "
+          "registration {:.3f} s{}",
+          method, source.size(), target.size(), source_full.size(), target_full.size(),
+          result.num_inliers, result.rmse_m, result.iterations,
+          result.converged ? "converged" : "NOT converged: ", result.converged ? "" : result.message,
+          load_s, prep_s, reg_s,
+          output_path.empty() ? "" : "; wrote " + output_path + "/{T_target_source,covariance}.txt");
+  if (!result.converged) LogWarning("icp: {}", result.message);
+  return 0;
+}
+
+}  // namespace lisfm

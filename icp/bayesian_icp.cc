@@ -1,0 +1,203 @@
+#include "icp/bayesian_icp.h"
+
+#include <cmath>
+#include <random>
+
+#include <Eigen/Cholesky>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+#include <tbb/parallel_reduce.h>
+
+#include "core/errors.h"
+#include "icp/icp_internal.h"
+
+namespace lisfm {
+
+namespace {
+
+// Per-batch sums: sum (g_i(T) - g_i(T0)) and the curvature sum w J^T J.
+struct BatchSums {
+  Vec6 gradient_difference = Vec6::Zero();
+  Mat6 curvature = Mat6::Zero();
+};
+
+// Point-to-plane terms re-associated at every pose (the ICP SgldModel).
+class PointToPlaneModel : public SgldModel {
+ public:
+  PointToPlaneModel(const PointSet& source,
+                    const std::vector<Eigen::Vector3f>& normals,
+                    const IcpTarget& target,
+                    const IcpOptions& options)
+      : source_(source), normals_(normals), target_(target), base_(SE3(), options) {}
+
+  size_t NumTerms() const override { return source_.size(); }
+
+  bool Term(size_t i, const SE3& T, double* residual, Eigen::Matrix<double, 1, 6>* jacobian,
+            double* weight) const override {
+    internal::LinearizationContext ctx = base_;
+    ctx.rotation_f = T.RotationMatrix().cast<float>();
+    ctx.translation_f = T.translation().cast<float>();
+    internal::LinearizedTerm term;
+    const Eigen::Vector3f n = normals_.empty() ? Eigen::Vector3f::Zero() : normals_[i];
+    if (!internal::LinearizePoint(target_, ctx, source_[i], n, &term)) return false;
+    *residual = term.residual;
+    *jacobian = term.jacobian;
+    *weight = term.weight;
+    return true;
+  }
+
+ private:
+  const PointSet& source_;
+  const std::vector<Eigen::Vector3f>& normals_;
+  const IcpTarget& target_;
+  internal::LinearizationContext base_;
+};
+
+}  // namespace
+
+bool SgldOptions::Check() const {
+  return num_iterations > 0 && burn_in >= 0 && burn_in < num_iterations && thinning >= 1 &&
+         batch_size >= 1 && step_size > 0 && step_size < 2 && metric_decay >= 0 &&
+         metric_decay < 1 && damping_sigma_rotation_rad > 0 && damping_sigma_translation_m > 0;
+}
+
+bool BayesianIcpOptions::Check() const {
+  return icp.Check() && sgld.Check() && noise_sigma_m >= 0;
+}
+
+SgldResult SampleSgld(const SgldModel& model,
+                      const SE3& mode,
+                      double noise_sigma,
+                      const SgldOptions& options) {
+  THROW_CHECK_MSG(options.Check(), "invalid SgldOptions");
+  THROW_CHECK_GT(noise_sigma, 0.0);
+  const size_t n = model.NumTerms();
+  THROW_CHECK_GT(n, 0u);
+  const double inv_var = 1.0 / (noise_sigma * noise_sigma);
+
+  // Control variate: per-term gradients at the mode, and their sum.
+  std::vector<Vec6> mode_gradients(n, Vec6::Zero());
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, n, 1024), [&](const tbb::blocked_range<size_t>& r) {
+    double residual, weight;
+    Eigen::Matrix<double, 1, 6> J;
+    for (size_t i = r.begin(); i != r.end(); ++i) {
+      if (model.Term(i, mode, &residual, &J, &weight)) {
+        mode_gradients[i] = J.transpose() * (weight * residual * inv_var);
+      }
+    }
+  });
+  BatchSums mode_sums = tbb::parallel_deterministic_reduce(
+      tbb::blocked_range<size_t>(0, n, 1024), BatchSums(),
+      [&](const tbb::blocked_range<size_t>& r, BatchSums s) {
+        double residual, weight;
+        Eigen::Matrix<double, 1, 6> J;
+        for (size_t i = r.begin(); i != r.end(); ++i) {
+          s.gradient_difference += mode_gradients[i];
+          if (model.Term(i, mode, &residual, &J, &weight)) {
+            s.curvature.noalias() += J.transpose() * J * (weight * inv_var);
+          }
+        }
+        return s;
+      },
+      [](BatchSums a, const BatchSums& b) {
+        a.gradient_difference += b.gradient_difference;
+        a.curvature += b.curvature;
+        return a;
+      });
+  const Vec6 mode_gradient = mode_sums.gradient_difference;
+
+  Vec6 damping;
+  damping << Eigen::Vector3d::Constant(1.0 / std::pow(options.damping_sigma_rotation_rad, 2)),
+      Eigen::Vector3d::Constant(1.0 / std::pow(options.damping_sigma_translation_m, 2));
+  Mat6 metric = mode_sums.curvature;
+  metric.diagonal() += damping;
+
+  std::mt19937_64 rng(options.seed);
+  std::uniform_int_distribution<size_t> pick(0, n - 1);
+  std::normal_distribution<double> normal(0.0, 1.0);
+  const size_t batch = static_cast<size_t>(options.batch_size);
+  const double scale = static_cast<double>(n) / static_cast<double>(batch);
+  const double eps = options.step_size;
+  const double noise_scale = std::sqrt(eps * (1.0 - eps / 4.0));
+  std::vector<size_t> indices(batch);
+
+  SgldResult result;
+  std::vector<SE3> kept;
+  kept.reserve(static_cast<size_t>((options.num_iterations - options.burn_in) / options.thinning + 1));
+  SE3 T = mode;
+  for (int it = 0; it < options.num_iterations; ++it) {
+    for (auto& i : indices) i = pick(rng);
+    const BatchSums sums = tbb::parallel_deterministic_reduce(
+        tbb::blocked_range<size_t>(0, batch, 32), BatchSums(),
+        [&](const tbb::blocked_range<size_t>& r, BatchSums s) {
+          double residual, weight;
+          Eigen::Matrix<double, 1, 6> J;
+          for (size_t k = r.begin(); k != r.end(); ++k) {
+            const size_t i = indices[k];
+            s.gradient_difference -= mode_gradients[i];
+            if (model.Term(i, T, &residual, &J, &weight)) {
+              s.gradient_difference += J.transpose() * (weight * residual * inv_var);
+              s.curvature.noalias() += J.transpose() * J * (weight * inv_var);
+            }
+          }
+          return s;
+        },
+        [](BatchSums a, const BatchSums& b) {
+          a.gradient_difference += b.gradient_difference;
+          a.curvature += b.curvature;
+          return a;
+        });
+    result.num_term_evaluations += batch;
+    const Vec6 gradient = mode_gradient + scale * sums.gradient_difference;
+    Mat6 batch_metric = scale * sums.curvature;
+    batch_metric.diagonal() += damping;
+    metric = options.metric_decay * metric + (1.0 - options.metric_decay) * batch_metric;
+    const Eigen::LLT<Mat6> llt(metric);
+    THROW_CHECK_MSG(llt.info() == Eigen::Success, "SGLD preconditioner is not positive definite");
+    Vec6 eta;
+    for (int k = 0; k < 6; ++k) eta(k) = normal(rng);
+    const Vec6 step = -0.5 * eps * llt.solve(gradient) + noise_scale * llt.matrixU().solve(eta);
+    T = T * SE3::Exp(step);
+    if (it >= options.burn_in && (it - options.burn_in) % options.thinning == 0) kept.push_back(T);
+  }
+
+  // Frechet mean on SE(3) by right-tangent averaging, then the covariance.
+  SE3 mean = mode;
+  for (int iter = 0; iter < 10; ++iter) {
+    Vec6 delta = Vec6::Zero();
+    for (const SE3& s : kept) delta += (mean.Inverse() * s).Log();
+    delta /= static_cast<double>(kept.size());
+    mean = mean * SE3::Exp(delta);
+    if (delta.norm() < 1e-12) break;
+  }
+  Mat6 cov = Mat6::Zero();
+  for (const SE3& s : kept) {
+    const Vec6 xi = (mean.Inverse() * s).Log();
+    cov += xi * xi.transpose();
+  }
+  result.mean = mean;
+  result.covariance = kept.size() > 1 ? Mat6(cov / static_cast<double>(kept.size() - 1)) : cov;
+  result.num_samples = kept.size();
+  if (options.keep_samples) result.samples = std::move(kept);
+  return result;
+}
+
+BayesianIcpResult RegisterBayesian(const PointSet& source,
+                                   const IcpTarget& target,
+                                   const SE3& initial,
+                                   const BayesianIcpOptions& options,
+                                   const std::vector<Eigen::Vector3f>& source_normals) {
+  THROW_CHECK_MSG(options.Check(), "invalid BayesianIcpOptions");
+  BayesianIcpResult result;
+  result.icp = RegisterPointToPlane(source, target, initial, options.icp, source_normals);
+  double sigma = options.noise_sigma_m;
+  if (sigma <= 0) sigma = std::sqrt(result.icp.residual_variance_m2);
+  // A perfect fit (synthetic data) has zero residuals: floor sigma at 1 um.
+  result.noise_sigma_m = std::max(sigma, 1e-6);
+  const PointToPlaneModel model(source, source_normals, target, options.icp);
+  result.posterior = SampleSgld(model, result.icp.target_from_source, result.noise_sigma_m,
+                                options.sgld);
+  return result;
+}
+
+}  // namespace lisfm

@@ -1,0 +1,359 @@
+// Side-by-side ICP benchmark on the real pairs of ../shared/data (scripts/bench_icp.sh):
+// lisfm point-to-plane (and Bayesian ICP, closed-form covariance) vs PCL
+// IterativeClosestPointWithNormals, PCL GeneralizedIterativeClosestPoint and Open3D
+// point-to-plane. Each method runs its whole process (load, voxel downsampling,
+// normals, registration) with its own library's functions and the same parameters.
+// `--knn` compares nanoflann and FLANN on the LiDAR pair.
+//
+// Times are medians over `repeats` runs (whole process and registration alone);
+// the errors are of the last run. The Bayesian time is ICP + SGLD from the same
+// (lazily normal-estimated) target.
+// Usage: lisfm_icp_bench DATA_DIR [repeats] [--knn]
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <fstream>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include <flann/flann.hpp>
+#include <nanoflann.hpp>
+#include <open3d/geometry/PointCloud.h>
+#include <open3d/io/PointCloudIO.h>
+#include <open3d/utility/Logging.h>
+#include <open3d/pipelines/registration/Registration.h>
+#include <open3d/pipelines/registration/TransformationEstimation.h>
+#include <pcl/features/normal_3d_omp.h>
+#include <pcl/filters/voxel_grid.h>
+#include <pcl/io/pcd_io.h>
+#include <pcl/point_types.h>
+#include <pcl/registration/gicp.h>
+#include <pcl/registration/icp.h>
+
+#include "core/io/cloud_io.h"
+#include "icp/bayesian_icp.h"
+#include "icp/icp.h"
+#include "icp/icp_covariance.h"
+
+namespace lisfm {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double Ms(Clock::time_point a) {
+  return std::chrono::duration<double, std::milli>(Clock::now() - a).count();
+}
+
+struct Pair {
+  std::string name, source, target;
+  Mat4 reference = Mat4::Identity();  // T_target_source
+  double source_voxel = 0, target_voxel = 0, max_distance = 1.0, kernel_scale = 0.1;
+  int normal_k = 10;
+};
+
+struct Outcome {
+  double ms = 0;      // whole process: load, downsampling, normals, registration
+  double reg_ms = 0;  // registration alone (for lisfm: including lazy target normals)
+  Mat4 T = Mat4::Identity();
+};
+
+void Errors(const Mat4& T, const Mat4& ref, double* rot_deg, double* trans_m) {
+  const Mat3 dR = T.topLeftCorner<3, 3>().transpose() * ref.topLeftCorner<3, 3>();
+  *rot_deg = Eigen::AngleAxisd(Mat3(dR)).angle() * 180.0 / M_PI;
+  *trans_m = (T.topRightCorner<3, 1>() - ref.topRightCorner<3, 1>()).norm();
+}
+
+Outcome RunOurs(const Pair& p, bool bayesian, double* bayes_ms, double* closed_ms) {
+  const auto t0 = Clock::now();
+  const PointSet src = VoxelDownsamplePoints(FinitePointsOf(ReadPointCloud(p.source)), p.source_voxel);
+  const PointSet tgt_points =
+      VoxelDownsamplePoints(FinitePointsOf(ReadPointCloud(p.target)), p.target_voxel);
+  const NormalOptions normal_options{p.normal_k, 10 * std::max(p.target_voxel, 0.01)};
+  const KdTreeTarget tgt(tgt_points, normal_options);
+  IcpOptions o;
+  o.max_correspondence_distance_m = p.max_distance;
+  o.kernel_scale_m = p.kernel_scale;
+  const auto t_reg = Clock::now();
+  const IcpResult r = RegisterPointToPlane(src, tgt, SE3(), o);
+  Outcome out;
+  out.reg_ms = Ms(t_reg);
+  out.ms = Ms(t0);
+  out.T = r.target_from_source.Matrix();
+  const auto t1 = Clock::now();
+  const Mat6 c = ClosedFormCovariance(r);
+  *closed_ms = Ms(t1);
+  if (!c.allFinite()) std::printf("non-finite closed form\n");
+  if (bayesian) {
+    BayesianIcpOptions b;
+    b.icp = o;
+    // A fresh target (tree + lazy normals) so that the time includes them.
+    const auto t2 = Clock::now();
+    const KdTreeTarget fresh(tgt_points, normal_options);
+    const BayesianIcpResult br = RegisterBayesian(src, fresh, SE3(), b);
+    *bayes_ms = Ms(t2);
+    std::printf("    bayesian: %zu source / %zu target pts, %zu SGLD samples, %zu re-associations, std rot %.3f/%.3f/%.3f mrad, trans %.2f/%.2f/%.2f mm; closed form trans %.2f/%.2f/%.2f mm\n",
+                src.size(), tgt_points.size(), br.posterior.num_samples,
+                br.posterior.num_term_evaluations, 1e3 * std::sqrt(br.posterior.covariance(0, 0)),
+                1e3 * std::sqrt(br.posterior.covariance(1, 1)), 1e3 * std::sqrt(br.posterior.covariance(2, 2)),
+                1e3 * std::sqrt(br.posterior.covariance(3, 3)), 1e3 * std::sqrt(br.posterior.covariance(4, 4)),
+                1e3 * std::sqrt(br.posterior.covariance(5, 5)), 1e3 * std::sqrt(c(3, 3)),
+                1e3 * std::sqrt(c(4, 4)), 1e3 * std::sqrt(c(5, 5)));
+  }
+  return out;
+}
+
+template <typename PointT>
+typename pcl::PointCloud<PointT>::Ptr PclLoad(const std::string& path, double voxel) {
+  typename pcl::PointCloud<PointT>::Ptr cloud(new pcl::PointCloud<PointT>);
+  pcl::io::loadPCDFile(path, *cloud);
+  std::vector<int> idx;
+  pcl::removeNaNFromPointCloud(*cloud, *cloud, idx);
+  if (voxel <= 0) return cloud;
+  typename pcl::PointCloud<PointT>::Ptr out(new pcl::PointCloud<PointT>);
+  pcl::VoxelGrid<PointT> grid;
+  grid.setLeafSize(voxel, voxel, voxel);
+  grid.setInputCloud(cloud);
+  grid.filter(*out);
+  return out;
+}
+
+pcl::PointCloud<pcl::PointNormal>::Ptr PclWithNormals(const std::string& path, double voxel, int k) {
+  const auto xyz = PclLoad<pcl::PointXYZ>(path, voxel);
+  pcl::PointCloud<pcl::Normal> normals;
+  pcl::NormalEstimationOMP<pcl::PointXYZ, pcl::Normal> ne(2);
+  ne.setInputCloud(xyz);
+  ne.setKSearch(k);
+  ne.compute(normals);
+  pcl::PointCloud<pcl::PointNormal>::Ptr out(new pcl::PointCloud<pcl::PointNormal>);
+  pcl::concatenateFields(*xyz, normals, *out);
+  std::vector<int> idx;
+  pcl::removeNaNNormalsFromPointCloud(*out, *out, idx);
+  return out;
+}
+
+Outcome RunPclPointToPlane(const Pair& p) {
+  const auto t0 = Clock::now();
+  const auto src = PclWithNormals(p.source, p.source_voxel, p.normal_k);
+  const auto tgt = PclWithNormals(p.target, p.target_voxel, p.normal_k);
+  pcl::IterativeClosestPointWithNormals<pcl::PointNormal, pcl::PointNormal> icp;
+  icp.setInputSource(src);
+  icp.setInputTarget(tgt);
+  icp.setMaxCorrespondenceDistance(p.max_distance);
+  icp.setMaximumIterations(50);
+  icp.setTransformationEpsilon(1e-8);
+  pcl::PointCloud<pcl::PointNormal> aligned;
+  const auto t_reg = Clock::now();
+  icp.align(aligned);
+  Outcome out;
+  out.reg_ms = Ms(t_reg);
+  out.ms = Ms(t0);
+  out.T = icp.getFinalTransformation().cast<double>();
+  return out;
+}
+
+Outcome RunPclGicp(const Pair& p) {
+  const auto t0 = Clock::now();
+  const auto src = PclLoad<pcl::PointXYZ>(p.source, p.source_voxel);
+  const auto tgt = PclLoad<pcl::PointXYZ>(p.target, p.target_voxel);
+  pcl::GeneralizedIterativeClosestPoint<pcl::PointXYZ, pcl::PointXYZ> gicp;
+  gicp.setInputSource(src);
+  gicp.setInputTarget(tgt);
+  gicp.setMaxCorrespondenceDistance(p.max_distance);
+  gicp.setMaximumIterations(50);
+  gicp.setTransformationEpsilon(1e-8);
+  pcl::PointCloud<pcl::PointXYZ> aligned;
+  const auto t_reg = Clock::now();
+  gicp.align(aligned);  // includes GICP's own covariance (kNN) estimation
+  Outcome out;
+  out.reg_ms = Ms(t_reg);
+  out.ms = Ms(t0);
+  out.T = gicp.getFinalTransformation().cast<double>();
+  return out;
+}
+
+Outcome RunOpen3d(const Pair& p) {
+  namespace reg = open3d::pipelines::registration;
+  const auto t0 = Clock::now();
+  auto load = [&](const std::string& path, double voxel) {
+    open3d::geometry::PointCloud pc;
+    open3d::io::ReadPointCloud(path, pc);
+    pc.RemoveNonFinitePoints();
+    auto down = voxel > 0 ? pc.VoxelDownSample(voxel) : std::make_shared<open3d::geometry::PointCloud>(pc);
+    down->EstimateNormals(open3d::geometry::KDTreeSearchParamKNN(p.normal_k));
+    return down;
+  };
+  const auto src = load(p.source, p.source_voxel);
+  const auto tgt = load(p.target, p.target_voxel);
+  const auto t_reg = Clock::now();
+  const auto r = reg::RegistrationICP(*src, *tgt, p.max_distance, Mat4::Identity(),
+                                      reg::TransformationEstimationPointToPlane(),
+                                      reg::ICPConvergenceCriteria(1e-6, 1e-6, 50));
+  Outcome out;
+  out.reg_ms = Ms(t_reg);
+  out.ms = Ms(t0);
+  out.T = r.transformation_;
+  return out;
+}
+
+Mat4 ReadMatrix(const std::string& path) {
+  std::ifstream in(path);
+  Mat4 m;
+  for (int i = 0; i < 16; ++i) in >> m(i / 4, i % 4);
+  return m;
+}
+
+std::vector<Mat4> ReadBalmPoses(const std::string& path) {
+  std::ifstream in(path);
+  std::vector<Mat4> poses;
+  std::string line;
+  std::vector<double> v;
+  while (std::getline(in, line)) {
+    std::replace(line.begin(), line.end(), ',', ' ');
+    std::istringstream s(line);
+    double x;
+    while (s >> x) v.push_back(x);
+  }
+  for (size_t k = 0; k + 16 <= v.size(); k += 16) {
+    Mat4 m = Mat4::Identity();
+    for (int r = 0; r < 3; ++r)
+      for (int c = 0; c < 4; ++c) m(r, c) = v[k + 4 * r + c];
+    poses.push_back(m);
+  }
+  return poses;
+}
+
+void KnnComparison(const std::string& dir) {
+  const PointSet target = FinitePointsOf(ReadPointCloud(dir + "/registration_lidar_pair/251370668.pcd"));
+  const PointSet queries = FinitePointsOf(ReadPointCloud(dir + "/registration_lidar_pair/251371071.pcd"));
+  for (const int k : {1, 10}) {
+    auto t0 = Clock::now();
+    const KdTree tree(target);
+    const double nano_build = Ms(t0);
+    std::vector<uint32_t> idx(k);
+    std::vector<float> d2(k);
+    double checksum_nano = 0;
+    t0 = Clock::now();
+    for (const auto& q : queries) {
+      tree.Knn(q, k, idx.data(), d2.data());
+      checksum_nano += d2[k - 1];
+    }
+    const double nano_query = Ms(t0);
+    flann::Matrix<float> data(const_cast<float*>(target[0].data()), target.size(), 3);
+    t0 = Clock::now();
+    flann::Index<flann::L2_Simple<float>> index(data, flann::KDTreeSingleIndexParams(16));
+    index.buildIndex();
+    const double flann_build = Ms(t0);
+    std::vector<size_t> fidx(k);
+    std::vector<float> fd2(k);
+    double checksum_flann = 0;
+    t0 = Clock::now();
+    for (const auto& q : queries) {
+      flann::Matrix<float> query(const_cast<float*>(q.data()), 1, 3);
+      flann::Matrix<size_t> mi(fidx.data(), 1, k);
+      flann::Matrix<float> md(fd2.data(), 1, k);
+      index.knnSearch(query, mi, md, k, flann::SearchParams(-1));
+      checksum_flann += fd2[k - 1];
+    }
+    const double flann_query = Ms(t0);
+    std::printf("| %d-NN, %zu pts, %zu queries, 1 thread | %.1f ms | %.1f ms | %.1f ms | %.1f ms | %s |\n", k,
+                target.size(), queries.size(), nano_build, nano_query, flann_build, flann_query,
+                std::abs(checksum_nano - checksum_flann) < 1e-3 * checksum_nano ? "same" : "DIFFER");
+  }
+}
+
+double Median(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  return v[v.size() / 2];
+}
+
+}  // namespace
+}  // namespace lisfm
+
+int main(int argc, char** argv) {
+  using namespace lisfm;
+  if (argc < 2) {
+    std::fprintf(stderr, "usage: lisfm_icp_bench DATA_DIR [repeats] [--knn]\n");
+    return 2;
+  }
+  const std::string dir = argv[1];
+  const int repeats = argc > 2 && std::string(argv[2]) != "--knn" ? std::stoi(argv[2]) : 3;
+  bool knn = false;
+  for (int i = 2; i < argc; ++i) knn = knn || std::string(argv[i]) == "--knn";
+  pcl::console::setVerbosityLevel(pcl::console::L_ALWAYS);
+  open3d::utility::SetVerbosityLevel(open3d::utility::VerbosityLevel::Error);
+  if (knn) {
+    std::printf("| query | nanoflann build | nanoflann query | FLANN build | FLANN query | results |\n|---|---|---|---|---|---|\n");
+    KnnComparison(dir);
+    std::printf("\n");
+  }
+  std::vector<Pair> pairs;
+  {
+    Pair p;
+    p.name = "registration_lidar_pair";
+    p.target = dir + "/registration_lidar_pair/251370668.pcd";
+    p.source = dir + "/registration_lidar_pair/251371071.pcd";
+    p.reference = ReadMatrix(dir + "/registration_lidar_pair/relative.txt");
+    p.source_voxel = 0.25;
+    p.target_voxel = 0.1;
+    pairs.push_back(p);
+  }
+  {
+    Pair p;
+    p.name = "bunny bun0->bun4";
+    p.source = dir + "/pointclouds_pcl/bun0.pcd";
+    p.target = dir + "/pointclouds_pcl/bun4.pcd";
+    p.reference << 0.8806, 0.036481, -0.4724, 0.03453, -0.02354, 0.9992, 0.03326, -0.001519, 0.4732,
+        -0.01817, 0.8808, 0.04116, 0, 0, 0, 1;
+    p.max_distance = 0.05;
+    p.kernel_scale = 0.005;
+    pairs.push_back(p);
+  }
+  const std::vector<Mat4> poses = ReadBalmPoses(dir + "/lidar_balm_realworld_subset/alidarPose.csv");
+  for (int k = 30; k < 39 && k + 1 < static_cast<int>(poses.size()); ++k) {
+    Pair p;
+    p.name = "balm full" + std::to_string(k + 1) + "->full" + std::to_string(k);
+    p.target = dir + "/lidar_balm_realworld_subset/scans/full" + std::to_string(k) + ".pcd";
+    p.source = dir + "/lidar_balm_realworld_subset/scans/full" + std::to_string(k + 1) + ".pcd";
+    p.reference = poses[k].inverse() * poses[k + 1];
+    p.source_voxel = 0.25;
+    p.target_voxel = 0.1;
+    pairs.push_back(p);
+  }
+  std::printf("| pair | method | whole process (ms) | registration alone (ms) | rot err (deg) | trans err (m) |\n|---|---|---|---|---|---|\n");
+  for (const Pair& p : pairs) {
+    struct Method {
+      std::string name;
+      std::function<Outcome()> run;
+    };
+    double bayes_ms = 0, closed_ms = 0;
+    std::vector<double> bayes_times, closed_times;
+    const std::vector<Method> methods = {
+        {"lisfm point-to-plane", [&] {
+           auto o = RunOurs(p, false, &bayes_ms, &closed_ms);
+           closed_times.push_back(closed_ms);
+           return o;
+         }},
+        {"PCL ICPWithNormals", [&] { return RunPclPointToPlane(p); }},
+        {"PCL GICP", [&] { return RunPclGicp(p); }},
+        {"Open3D point-to-plane", [&] { return RunOpen3d(p); }},
+    };
+    for (const auto& m : methods) {
+      std::vector<double> times, reg_times;
+      Outcome o;
+      for (int r = 0; r < repeats; ++r) {
+        o = m.run();
+        times.push_back(o.ms);
+        reg_times.push_back(o.reg_ms);
+      }
+      double rot, trans;
+      Errors(o.T, p.reference, &rot, &trans);
+      std::printf("| %s | %s | %.1f | %.1f | %.3f | %.4f |\n", p.name.c_str(), m.name.c_str(),
+                  Median(times), Median(reg_times), rot, trans);
+      std::fflush(stdout);
+    }
+    RunOurs(p, true, &bayes_ms, &closed_ms);
+    std::printf("| %s | lisfm Bayesian ICP (ICP + SGLD) | | %.1f | | |\n| %s | lisfm closed-form covariance (on top of ICP) | | %.3f | | |\n",
+                p.name.c_str(), bayes_ms, p.name.c_str(), Median(closed_times));
+  }
+  return 0;
+}

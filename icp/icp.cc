@@ -1,0 +1,465 @@
+#include "icp/icp.h"
+
+#include <cmath>
+
+#include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
+#include <fmt/format.h>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_reduce.h>
+
+#include "core/errors.h"
+#include "icp/icp_internal.h"
+
+namespace lisfm {
+
+namespace {
+
+constexpr double kDegToRad = M_PI / 180.0;
+
+// Sums of one Gauss-Newton linearisation.
+struct Accumulator {
+  Mat6 hessian = Mat6::Zero();  // upper triangle filled during the reduction
+  Mat6 gradient_outer = Mat6::Zero();
+  Vec6 gradient = Vec6::Zero();
+  double weighted_sq = 0;  // sum w r^2
+  double sq = 0;           // sum r^2
+  Eigen::Vector3d point_sum = Eigen::Vector3d::Zero();
+  double point_sq = 0;  // sum |p|^2
+  size_t count = 0;
+
+  void Add(const internal::LinearizedTerm& t, const Eigen::Vector3f& p) {
+    const double wr = t.weight * t.residual;
+    hessian.selfadjointView<Eigen::Upper>().rankUpdate(t.jacobian.transpose(), t.weight);
+    gradient_outer.selfadjointView<Eigen::Upper>().rankUpdate(t.jacobian.transpose(), wr * wr);
+    gradient += t.jacobian.transpose() * wr;
+    weighted_sq += wr * t.residual;
+    sq += t.residual * t.residual;
+    const Eigen::Vector3d pd = p.cast<double>();
+    point_sum += pd;
+    point_sq += pd.squaredNorm();
+    ++count;
+  }
+  void Join(const Accumulator& o) {
+    hessian += o.hessian;
+    gradient_outer += o.gradient_outer;
+    gradient += o.gradient;
+    weighted_sq += o.weighted_sq;
+    sq += o.sq;
+    point_sum += o.point_sum;
+    point_sq += o.point_sq;
+    count += o.count;
+  }
+};
+
+Accumulator Linearize(const PointSet& source,
+                      const std::vector<Eigen::Vector3f>& source_normals,
+                      const IcpTarget& target,
+                      const internal::LinearizationContext& ctx,
+                      size_t stride = 1) {
+  const bool with_normals = !source_normals.empty();
+  const size_t num_used = (source.size() + stride - 1) / stride;
+  Accumulator total = tbb::parallel_deterministic_reduce(
+      tbb::blocked_range<size_t>(0, num_used, 512),
+      Accumulator(),
+      [&](const tbb::blocked_range<size_t>& range, Accumulator acc) {
+        internal::LinearizedTerm term;
+        for (size_t k = range.begin(); k != range.end(); ++k) {
+          const size_t i = k * stride;
+          const Eigen::Vector3f n = with_normals ? source_normals[i] : Eigen::Vector3f::Zero();
+          if (internal::LinearizePoint(target, ctx, source[i], n, &term)) {
+            acc.Add(term, source[i]);
+          }
+        }
+        return acc;
+      },
+      [](Accumulator a, const Accumulator& b) {
+        a.Join(b);
+        return a;
+      });
+  total.hessian = total.hessian.selfadjointView<Eigen::Upper>();
+  total.gradient_outer = total.gradient_outer.selfadjointView<Eigen::Upper>();
+  return total;
+}
+
+}  // namespace
+
+RobustKernel RobustKernelFromString(const std::string& name) {
+  if (name == "none") return RobustKernel::kNone;
+  if (name == "huber") return RobustKernel::kHuber;
+  if (name == "cauchy") return RobustKernel::kCauchy;
+  if (name == "geman_mcclure") return RobustKernel::kGemanMcClure;
+  throw UsageError("unknown robust kernel '" + name +
+                   "'; expected none, huber, cauchy or geman_mcclure");
+}
+
+std::string RobustKernelToString(RobustKernel kernel) {
+  switch (kernel) {
+    case RobustKernel::kNone: return "none";
+    case RobustKernel::kHuber: return "huber";
+    case RobustKernel::kCauchy: return "cauchy";
+    case RobustKernel::kGemanMcClure: return "geman_mcclure";
+  }
+  return "none";
+}
+
+double RobustWeight(RobustKernel kernel, double r, double k) {
+  const double a = std::abs(r);
+  switch (kernel) {
+    case RobustKernel::kNone: return 1.0;
+    case RobustKernel::kHuber: return a <= k ? 1.0 : k / a;
+    case RobustKernel::kCauchy: return 1.0 / (1.0 + (r * r) / (k * k));
+    case RobustKernel::kGemanMcClure: {
+      const double d = k * k + r * r;
+      return (k * k * k * k) / (d * d);
+    }
+  }
+  return 1.0;
+}
+
+double RobustLoss(RobustKernel kernel, double r, double k) {
+  const double a = std::abs(r);
+  switch (kernel) {
+    case RobustKernel::kNone: return 0.5 * r * r;
+    case RobustKernel::kHuber: return a <= k ? 0.5 * r * r : k * a - 0.5 * k * k;
+    case RobustKernel::kCauchy: return 0.5 * k * k * std::log1p((r * r) / (k * k));
+    case RobustKernel::kGemanMcClure: return 0.5 * r * r * k * k / (k * k + r * r);
+  }
+  return 0.5 * r * r;
+}
+
+bool IcpOptions::Check() const {
+  bool kernel_ok = true;
+  try {
+    RobustKernelFromString(kernel);
+  } catch (const UsageError&) {
+    kernel_ok = false;
+  }
+  return kernel_ok && max_iterations > 0 && max_correspondence_distance_m > 0 &&
+         max_normal_angle_deg > 0 && max_normal_angle_deg <= 180 && min_planarity >= 0 &&
+         min_planarity <= 1 && kernel_scale_m > 0 && convergence_rotation_rad >= 0 &&
+         convergence_translation_m >= 0 && min_inliers >= 6 && degeneracy_threshold >= 0 &&
+         coarse_stride >= 1;
+}
+
+// ---- targets ----
+
+namespace {
+constexpr uint8_t kNormalUnknown = 0;
+constexpr uint8_t kNormalBusy = 1;
+constexpr uint8_t kNormalReady = 2;
+}  // namespace
+
+KdTreeTarget::KdTreeTarget(PointSet points,
+                           const NormalOptions& normal_options,
+                           const Eigen::Vector3f& viewpoint)
+    : tree_(std::move(points), "target"), normal_options_(normal_options), viewpoint_(viewpoint) {
+  if (tree_.size() < 3) {
+    throw InputError("target", "", fmt::format("expected at least 3 points, found {}", tree_.size()));
+  }
+  THROW_CHECK_MSG(normal_options.Check(), "invalid NormalOptions");
+  normals_.normals.assign(tree_.size(), Eigen::Vector3f::Zero());
+  normals_.planarity.assign(tree_.size(), 0.f);
+  state_ = std::make_unique<std::atomic<uint8_t>[]>(tree_.size());  // value-initialised: 0
+}
+
+KdTreeTarget::KdTreeTarget(PointSet points, std::vector<Eigen::Vector3f> normals)
+    : tree_(std::move(points), "target") {
+  if (tree_.size() < 3) {
+    throw InputError("target", "", fmt::format("expected at least 3 points, found {}", tree_.size()));
+  }
+  if (normals.size() != tree_.size()) {
+    throw InputError("target normals", "",
+                     fmt::format("expected {} normals (one per point), found {}", tree_.size(),
+                                 normals.size()));
+  }
+  normals_.planarity.assign(normals.size(), 1.f);
+  for (size_t i = 0; i < normals.size(); ++i) {
+    const float norm = normals[i].norm();
+    if (!std::isfinite(norm)) {
+      throw InputError("target normals", fmt::format("normal {}", i), "expected finite values, found NaN/inf");
+    }
+    if (norm > 0) {
+      normals[i] /= norm;
+    } else {
+      normals_.planarity[i] = 0.f;
+    }
+  }
+  normals_.normals = std::move(normals);
+  state_ = std::make_unique<std::atomic<uint8_t>[]>(tree_.size());
+  for (size_t i = 0; i < tree_.size(); ++i) state_[i].store(kNormalReady, std::memory_order_relaxed);
+}
+
+KdTreeTarget::~KdTreeTarget() = default;
+
+void KdTreeTarget::NormalAt(size_t index, Eigen::Vector3f* normal, float* planarity) const {
+  THROW_CHECK_LT(index, tree_.size());
+  std::atomic<uint8_t>& state = state_[index];
+  uint8_t s = state.load(std::memory_order_acquire);
+  if (s == kNormalReady) {
+    *normal = normals_.normals[index];
+    *planarity = normals_.planarity[index];
+    return;
+  }
+  Eigen::Vector3f n = Eigen::Vector3f::Zero();
+  float p = 0.f;
+  EstimateNormalAt(tree_, index, normal_options_, viewpoint_, &n, &p);
+  // One thread publishes; a thread that finds the slot busy keeps its own
+  // (identical) result instead of waiting.
+  if (s == kNormalUnknown &&
+      state.compare_exchange_strong(s, kNormalBusy, std::memory_order_acquire)) {
+    normals_.normals[index] = n;
+    normals_.planarity[index] = p;
+    state.store(kNormalReady, std::memory_order_release);
+  }
+  *normal = n;
+  *planarity = p;
+}
+
+size_t KdTreeTarget::NumNormalsEstimated() const {
+  size_t count = 0;
+  for (size_t i = 0; i < tree_.size(); ++i) {
+    count += state_[i].load(std::memory_order_relaxed) == kNormalReady ? 1 : 0;
+  }
+  return count;
+}
+
+bool KdTreeTarget::Match(const Eigen::Vector3f& point,
+                         const Eigen::Vector3f& normal,
+                         float max_distance_m,
+                         float min_cos_normal_angle,
+                         float min_planarity,
+                         Eigen::Vector3f* target_point,
+                         Eigen::Vector3f* target_normal) const {
+  uint32_t index = 0;
+  float sq_dist = 0;
+  if (!tree_.Nearest(point, &index, &sq_dist)) return false;
+  if (sq_dist > max_distance_m * max_distance_m) return false;
+  Eigen::Vector3f n;
+  float planarity = 0.f;
+  NormalAt(index, &n, &planarity);
+  if (planarity <= 0.f || planarity < min_planarity) return false;
+  if (!normal.isZero() && std::abs(n.dot(normal)) < min_cos_normal_angle) return false;
+  *target_point = tree_.points()[index];
+  *target_normal = n;
+  return true;
+}
+
+ProjectiveTarget::ProjectiveTarget(PointSet vertex_map, const PinholeIntrinsics& intrinsics)
+    : vertex_map_(std::move(vertex_map)), intrinsics_(intrinsics) {
+  if (!(intrinsics.fx > 0 && intrinsics.fy > 0 && intrinsics.width > 2 && intrinsics.height > 2)) {
+    throw InputError("intrinsics", "",
+                     fmt::format("expected fx, fy > 0 and an image larger than 2x2, found fx={} "
+                                 "fy={} {}x{}",
+                                 intrinsics.fx, intrinsics.fy, intrinsics.width, intrinsics.height));
+  }
+  const size_t expected = static_cast<size_t>(intrinsics.width) * intrinsics.height;
+  if (vertex_map_.size() != expected) {
+    throw InputError("vertex map", "",
+                     fmt::format("expected {}x{} = {} vertices, found {}", intrinsics.width,
+                                 intrinsics.height, expected, vertex_map_.size()));
+  }
+  normals_ = EstimateOrganizedNormals(vertex_map_, intrinsics.width, intrinsics.height);
+  size_t valid = 0;
+  for (const float p : normals_.planarity) valid += p > 0 ? 1 : 0;
+  if (valid < 3) {
+    throw InputError("vertex map", "",
+                     fmt::format("expected at least 3 pixels with depth and a normal, found {}", valid));
+  }
+}
+
+bool ProjectiveTarget::Match(const Eigen::Vector3f& point,
+                             const Eigen::Vector3f& normal,
+                             float max_distance_m,
+                             float min_cos_normal_angle,
+                             float /*min_planarity*/,
+                             Eigen::Vector3f* target_point,
+                             Eigen::Vector3f* target_normal) const {
+  if (!(point.z() > 0)) return false;
+  const double u = intrinsics_.fx * point.x() / point.z() + intrinsics_.cx;
+  const double v = intrinsics_.fy * point.y() / point.z() + intrinsics_.cy;
+  const long ui = std::lround(u);
+  const long vi = std::lround(v);
+  if (ui < 0 || vi < 0 || ui >= intrinsics_.width || vi >= intrinsics_.height) return false;
+  const size_t i = static_cast<size_t>(vi) * intrinsics_.width + static_cast<size_t>(ui);
+  if (normals_.planarity[i] <= 0.f) return false;  // no depth or no normal
+  const Eigen::Vector3f& q = vertex_map_[i];
+  if ((q - point).squaredNorm() > max_distance_m * max_distance_m) return false;
+  const Eigen::Vector3f& n = normals_.normals[i];
+  if (!normal.isZero() && std::abs(n.dot(normal)) < min_cos_normal_angle) return false;
+  *target_point = q;
+  *target_normal = n;
+  return true;
+}
+
+// ---- linearisation ----
+
+namespace internal {
+
+LinearizationContext::LinearizationContext(const SE3& T, const IcpOptions& options)
+    : target_from_source(T),
+      rotation_f(T.RotationMatrix().cast<float>()),
+      translation_f(T.translation().cast<float>()),
+      max_distance_m(static_cast<float>(options.max_correspondence_distance_m)),
+      min_cos_normal_angle(static_cast<float>(std::cos(options.max_normal_angle_deg * kDegToRad))),
+      min_planarity(static_cast<float>(options.min_planarity)),
+      kernel(RobustKernelFromString(options.kernel)),
+      kernel_scale_m(options.kernel_scale_m) {}
+
+bool LinearizePoint(const IcpTarget& target,
+                    const LinearizationContext& ctx,
+                    const Eigen::Vector3f& p,
+                    const Eigen::Vector3f& n,
+                    LinearizedTerm* term) {
+  const Eigen::Vector3f p_t = ctx.rotation_f * p + ctx.translation_f;
+  const Eigen::Vector3f n_t = ctx.rotation_f * n;
+  Eigen::Vector3f q, nq;
+  if (!target.Match(p_t, n_t, ctx.max_distance_m, ctx.min_cos_normal_angle, ctx.min_planarity,
+                    &q, &nq)) {
+    return false;
+  }
+  // Residual in double from float inputs: r = n^T (T p - q), J = [(p x m)^T, m^T].
+  const Eigen::Vector3d nd = nq.cast<double>();
+  term->residual = nd.dot((p_t - q).cast<double>());
+  const Eigen::Vector3f m = ctx.rotation_f.transpose() * nq;
+  const Eigen::Vector3f pxm = p.cross(m);
+  term->jacobian << pxm.x(), pxm.y(), pxm.z(), m.x(), m.y(), m.z();
+  term->weight = RobustWeight(ctx.kernel, term->residual, ctx.kernel_scale_m);
+  return true;
+}
+
+}  // namespace internal
+
+double PointToPlaneResidual(const SE3& T,
+                            const Vec3& p,
+                            const Vec3& q,
+                            const Vec3& n,
+                            Eigen::Matrix<double, 1, 6>* jacobian) {
+  if (jacobian != nullptr) {
+    const Vec3 m = T.rotation().conjugate() * n;
+    jacobian->head<3>() = p.cross(m).transpose();
+    jacobian->tail<3>() = m.transpose();
+  }
+  return n.dot(T * p - q);
+}
+
+void CheckIcpSource(const PointSet& source, const std::vector<Eigen::Vector3f>& source_normals) {
+  if (source.size() < 6) {
+    throw InputError("source", "",
+                     fmt::format("expected at least 6 points for a 6-DoF registration, found {}",
+                                 source.size()));
+  }
+  CheckFinitePoints(source, "source");
+  if (!source_normals.empty()) {
+    if (source_normals.size() != source.size()) {
+      throw InputError("source normals", "",
+                       fmt::format("expected {} normals (one per source point), found {}",
+                                   source.size(), source_normals.size()));
+    }
+    CheckFinitePoints(source_normals, "source normals");
+  }
+}
+
+IcpResult RegisterPointToPlane(const PointSet& source,
+                               const IcpTarget& target,
+                               const SE3& initial,
+                               const IcpOptions& options,
+                               const std::vector<Eigen::Vector3f>& source_normals) {
+  THROW_CHECK_MSG(options.Check(), "invalid IcpOptions");
+  CheckIcpSource(source, source_normals);
+  IcpResult result;
+  result.target_from_source = initial;
+  Accumulator acc;
+  bool small_step = false;
+  // Coarse-to-fine: while far from the optimum, every coarse_stride-th source
+  // point is enough to point the step the right way; the full set is used once a
+  // step falls below 10x the convergence thresholds (or when the subset has too
+  // few matches), and only full-set steps can end the iteration.
+  size_t stride = static_cast<size_t>(options.coarse_stride);
+  if (source.size() / stride < static_cast<size_t>(100 * options.min_inliers)) stride = 1;
+  for (int iteration = 0; iteration < options.max_iterations; ++iteration) {
+    const internal::LinearizationContext ctx(result.target_from_source, options);
+    acc = Linearize(source, source_normals, target, ctx, stride);
+    result.iterations = iteration + 1;
+    if (acc.count < static_cast<size_t>(options.min_inliers)) {
+      if (stride > 1) {
+        stride = 1;
+        continue;
+      }
+      break;
+    }
+    // Tiny Levenberg damping keeps degenerate directions from exploding; it is
+    // 1e-9 of the mean diagonal, far below any observable direction.
+    Mat6 damped = acc.hessian;
+    damped.diagonal().array() += 1e-9 * acc.hessian.trace() / 6.0 + 1e-12;
+    const Vec6 step = -damped.ldlt().solve(acc.gradient);
+    if (!step.allFinite()) break;
+    result.target_from_source = result.target_from_source * SE3::Exp(step);
+    const double rotation_step = step.head<3>().norm();
+    const double translation_step = step.tail<3>().norm();
+    if (stride > 1) {
+      if (rotation_step < 10 * options.convergence_rotation_rad &&
+          translation_step < 10 * options.convergence_translation_m) {
+        stride = 1;
+      }
+      continue;
+    }
+    if (rotation_step < options.convergence_rotation_rad &&
+        translation_step < options.convergence_translation_m) {
+      small_step = true;
+      break;
+    }
+  }
+  // Statistics and the Hessian at the returned estimate (one more association).
+  if (small_step || stride > 1) acc = Linearize(source, source_normals, target,
+                                  internal::LinearizationContext(result.target_from_source, options));
+  result.num_inliers = acc.count;
+  result.hessian = acc.hessian;
+  result.gradient_outer = acc.gradient_outer;
+  if (acc.count > 0) {
+    result.rmse_m = std::sqrt(acc.sq / acc.count);
+    const Eigen::Vector3d mean = acc.point_sum / acc.count;
+    const double spread = acc.point_sq / acc.count - mean.squaredNorm();
+    result.characteristic_length_m = std::sqrt(std::max(spread, 1e-12));
+  }
+  if (acc.count > 6) result.residual_variance_m2 = acc.weighted_sq / (acc.count - 6.0);
+  // Degeneracy: rotation columns scale with distance, so compare eigenvalues of
+  // D H D with D = diag(1/L, 1/L, 1/L, 1, 1, 1) (dimensionless ratio). For the
+  // translation block this ratio is the share of squared normal components along
+  // the weakest direction; normal noise alone gives ~0.5-1 % in a corridor
+  // (PCA over 10 neighbours with mm noise), hence the default threshold of 2 %.
+  Vec6 d;
+  d << Eigen::Vector3d::Constant(1.0 / result.characteristic_length_m), Eigen::Vector3d::Ones();
+  const Mat6 scaled = d.asDiagonal() * acc.hessian * d.asDiagonal();
+  result.scaled_eigenvalues = Eigen::SelfAdjointEigenSolver<Mat6>(scaled).eigenvalues();
+  const double max_eig = result.scaled_eigenvalues(5);
+  // Two tests: translation block (share of squared normal components along the
+  // weakest direction; catches planes and corridors) against the threshold, and the
+  // full scaled Hessian against a tenth of it (weak rotations, e.g. roll about a
+  // camera's optical axis in a room, reach ~5e-3 while still well determined).
+  const Eigen::Vector3d trans_eig =
+      Eigen::SelfAdjointEigenSolver<Mat3>(acc.hessian.bottomRightCorner<3, 3>()).eigenvalues();
+  const double trans_ratio = trans_eig(2) > 0 ? trans_eig(0) / trans_eig(2) : 0.0;
+  const double full_ratio = max_eig > 0 ? result.scaled_eigenvalues(0) / max_eig : 0.0;
+  result.degenerate = !(max_eig > 0) || trans_ratio < options.degeneracy_threshold ||
+                      full_ratio < 0.1 * options.degeneracy_threshold;
+  if (acc.count < static_cast<size_t>(options.min_inliers)) {
+    result.message = fmt::format("too few correspondences: {} < min_inliers {}", acc.count,
+                                 options.min_inliers);
+  } else if (result.degenerate) {
+    result.message = fmt::format(
+        "degenerate geometry: Hessian eigenvalue ratios {:.2e} (translation) / {:.2e} (scaled, "
+        "all) below {:.1e} / {:.1e} (e.g. a plane or a corridor); the estimate is unconstrained "
+        "along some directions",
+        trans_ratio, full_ratio, options.degeneracy_threshold, 0.1 * options.degeneracy_threshold);
+  } else if (!small_step) {
+    result.message = fmt::format("no convergence within {} iterations", options.max_iterations);
+  } else {
+    result.message = "converged";
+  }
+  result.converged = small_step && !result.degenerate &&
+                     acc.count >= static_cast<size_t>(options.min_inliers);
+  return result;
+}
+
+}  // namespace lisfm

@@ -1,0 +1,192 @@
+// Point-to-plane ICP with two association modes behind one interface.
+//
+// Conventions (DESIGN.md): the estimate is target_from_source (x_target =
+// T * x_source); increments and uncertainty live on the right, T = T_hat Exp(xi),
+// xi = [omega; v] (rotation first), rad and m.
+//
+// Residual of source point p matched to target point q with target normal n:
+//   r = n^T (T p - q).
+// With T = T_hat Exp(xi) and Exp(xi) p ~ p + omega x p + v, and m = R_hat^T n:
+//   r(xi) ~ r + m^T(-[p]x omega + v)   =>   J = [ (p x m)^T , m^T ]   (1x6).
+// This is the A_i = n_i^T [-[p_i]x  I] written in the source frame (the
+// right perturbation). Each iteration solves the 6x6 normal equations
+// (sum w J^T J) xi = -(sum w J^T r) by Cholesky (LDLT with a tiny Levenberg
+// damping so that degenerate directions do not blow up), then T <- T Exp(xi).
+// Weights w come from the robust kernel (IRLS). Correspondences are rejected by
+// distance |Tp - q| > max_correspondence_distance_m, by the normal angle when
+// source normals are given, and by target planarity.
+//
+// Failures: bad user input (empty, tiny or non-finite clouds, size mismatches)
+// throws InputError; an unusable solve (too few inliers) is a value:
+// converged = false with a message. A geometrically degenerate problem (a plane,
+// a corridor) is reported with degenerate = true and converged = false.
+// Threads: the per-iteration association and accumulation are TBB parallel
+// deterministic reductions; results do not depend on the thread count.
+#pragma once
+
+#include <atomic>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "core/geometry.h"
+#include "icp/nearest_neighbors.h"
+#include "icp/normals.h"
+
+namespace lisfm {
+
+enum class RobustKernel { kNone, kHuber, kCauchy, kGemanMcClure };
+
+// "none", "huber", "cauchy", "geman_mcclure"; throws UsageError otherwise.
+RobustKernel RobustKernelFromString(const std::string& name);
+std::string RobustKernelToString(RobustKernel kernel);
+
+// IRLS weight w(r) = rho'(r) / r for scale k (m):
+//   Huber   rho = r^2/2 (|r| <= k), k|r| - k^2/2 else;   w = min(1, k/|r|)
+//   Cauchy  rho = k^2/2 log(1 + r^2/k^2);                 w = 1 / (1 + r^2/k^2)
+//   Geman-McClure rho = r^2 k^2 / (2 (k^2 + r^2));        w = k^4 / (k^2 + r^2)^2
+double RobustWeight(RobustKernel kernel, double r, double k);
+double RobustLoss(RobustKernel kernel, double r, double k);
+
+struct IcpOptions {
+  int max_iterations = 50;                   // Gauss-Newton iterations
+  double max_correspondence_distance_m = 1.0;  // reject |Tp - q| above this (m)
+  double max_normal_angle_deg = 45.0;        // reject when source/target normals differ more (deg; used when source normals are given)
+  double min_planarity = 0.0;                // ignore target points with lower planarity, [0, 1]
+  std::string kernel = "huber";              // none | huber | cauchy | geman_mcclure
+  double kernel_scale_m = 0.1;               // robust kernel scale k (m)
+  double convergence_rotation_rad = 1e-4;    // stop when |omega| of a step is below (rad)
+  double convergence_translation_m = 1e-4;   // ... and |v| is below (m)
+  int min_inliers = 12;                      // fewer matches -> not converged
+  int coarse_stride = 4;                     // early iterations use every k-th source point (1 = off; needs >= 100 min_inliers points per subset)
+  double degeneracy_threshold = 0.02;        // min/max eigenvalue ratio of the translation Hessian; a tenth of it for the scaled 6x6 (see icp.cc)
+  bool Check() const;
+};
+
+// Where source points find their matches. Match() receives a source point and
+// (optionally, zero if unknown) its normal, both already mapped into the target
+// frame, and returns the matched target point and its unit normal, or false
+// when no admissible match exists. Implementations are immutable and thread-safe.
+class IcpTarget {
+ public:
+  virtual ~IcpTarget() = default;
+  virtual bool Match(const Eigen::Vector3f& point,
+                     const Eigen::Vector3f& normal,
+                     float max_distance_m,
+                     float min_cos_normal_angle,
+                     float min_planarity,
+                     Eigen::Vector3f* target_point,
+                     Eigen::Vector3f* target_normal) const = 0;
+  virtual size_t size() const = 0;
+};
+
+// Unorganised clouds (LiDAR): nearest neighbour in a KD-tree.
+// Normals are estimated lazily: the first time a target point is matched, its
+// PCA normal (EstimateNormalAt) is computed and cached, so only the target points
+// that ever take part in a match pay for a normal (typically a third to a half of
+// a target twice as dense as the source). The result is identical to estimating
+// all normals up front and does not depend on the thread count. The cache is
+// internally synchronised (atomic per-point state): Match() stays const and
+// thread-safe.
+class KdTreeTarget : public IcpTarget {
+ public:
+  // Builds the tree; normals are oriented towards `viewpoint`. Throws InputError
+  // for non-finite or fewer than 3 points, InternalError for bad options.
+  KdTreeTarget(PointSet points,
+               const NormalOptions& normal_options,
+               const Eigen::Vector3f& viewpoint = Eigen::Vector3f::Zero());
+  // Uses given normals (planarity 1). Throws InputError on a size mismatch.
+  KdTreeTarget(PointSet points, std::vector<Eigen::Vector3f> normals);
+  ~KdTreeTarget() override;
+
+  bool Match(const Eigen::Vector3f& point,
+             const Eigen::Vector3f& normal,
+             float max_distance_m,
+             float min_cos_normal_angle,
+             float min_planarity,
+             Eigen::Vector3f* target_point,
+             Eigen::Vector3f* target_normal) const override;
+  size_t size() const override { return tree_.size(); }
+  const KdTree& tree() const { return tree_; }
+  // Unit normal (zero when invalid) and planarity of target point `index`,
+  // estimated now unless cached.
+  void NormalAt(size_t index, Eigen::Vector3f* normal, float* planarity) const;
+  // How many normals have been estimated and cached so far.
+  size_t NumNormalsEstimated() const;
+
+ private:
+  KdTree tree_;
+  NormalOptions normal_options_;
+  Eigen::Vector3f viewpoint_ = Eigen::Vector3f::Zero();
+  mutable Normals normals_;  // written once per point under state_
+  mutable std::unique_ptr<std::atomic<uint8_t>[]> state_;  // 0 unknown, 1 being computed, 2 ready
+};
+
+struct PinholeIntrinsics {
+  double fx = 0, fy = 0, cx = 0, cy = 0;  // pixels; u = fx x/z + cx
+  int width = 0, height = 0;              // pixels
+};
+
+// Organised RGB-D vertex maps: the target frame is the target camera frame;
+// a point is projected, rounded to the nearest pixel, and matched to that
+// pixel's vertex if it is inside the image, the vertex is valid (z > 0), closer
+// than max_distance_m and (with source normals) within the normal angle.
+class ProjectiveTarget : public IcpTarget {
+ public:
+  // vertex_map: width*height row-major points in the camera frame (non-finite or
+  // z <= 0 = no depth). Normals from EstimateOrganizedNormals. Throws InputError on
+  // a size mismatch, bad intrinsics or when no pixel is valid.
+  ProjectiveTarget(PointSet vertex_map, const PinholeIntrinsics& intrinsics);
+
+  bool Match(const Eigen::Vector3f& point,
+             const Eigen::Vector3f& normal,
+             float max_distance_m,
+             float min_cos_normal_angle,
+             float min_planarity,
+             Eigen::Vector3f* target_point,
+             Eigen::Vector3f* target_normal) const override;
+  size_t size() const override { return vertex_map_.size(); }
+
+ private:
+  PointSet vertex_map_;
+  Normals normals_;
+  PinholeIntrinsics intrinsics_;
+};
+
+struct IcpResult {
+  SE3 target_from_source;
+  bool converged = false;   // step below the thresholds, enough inliers, not degenerate
+  bool degenerate = false;  // Hessian min/max eigenvalue ratios below threshold (IcpOptions)
+  int iterations = 0;
+  size_t num_inliers = 0;
+  double rmse_m = 0;               // RMS point-to-plane residual of the inliers (m)
+  double residual_variance_m2 = 0;  // sum w r^2 / (N - 6), the closed form's sigma^2
+  Mat6 hessian = Mat6::Zero();      // sum w J^T J (xi on the right) at the estimate (last linearisation if not converged)
+  Mat6 gradient_outer = Mat6::Zero();  // sum w^2 r^2 J^T J (Censi/sandwich "meat")
+  Vec6 scaled_eigenvalues = Vec6::Zero();  // eigenvalues of D H D, D = diag(1/L I3, I3), ascending
+  double characteristic_length_m = 1;  // L: RMS distance of inlier source points from their centroid
+  std::string message;
+};
+
+// One point-to-plane residual and its 1x6 Jacobian w.r.t. the right
+// perturbation xi at T (see the header comment).
+double PointToPlaneResidual(const SE3& target_from_source,
+                            const Vec3& source_point,
+                            const Vec3& target_point,
+                            const Vec3& target_normal,
+                            Eigen::Matrix<double, 1, 6>* jacobian);
+
+// Registers `source` (source frame) to `target`. source_normals: empty or one per
+// source point (source frame) for the normal-angle test. Throws InputError for
+// empty/tiny/non-finite input or mismatched sizes, InternalError for bad options.
+IcpResult RegisterPointToPlane(const PointSet& source,
+                               const IcpTarget& target,
+                               const SE3& initial_target_from_source,
+                               const IcpOptions& options,
+                               const std::vector<Eigen::Vector3f>& source_normals = {});
+
+// Checks a source cloud (and its optional normals) for RegisterPointToPlane.
+void CheckIcpSource(const PointSet& source, const std::vector<Eigen::Vector3f>& source_normals);
+
+}  // namespace lisfm

@@ -1,0 +1,40 @@
+// Association + linearisation of one source point, shared by the ICP solver
+// and the Bayesian sampler. Internal to lisfm_icp (not a public API).
+#pragma once
+
+#include <vector>
+
+#include "icp/icp.h"
+
+namespace lisfm {
+namespace internal {
+
+// Per-estimate constants, built once per iteration.
+struct LinearizationContext {
+  LinearizationContext(const SE3& target_from_source, const IcpOptions& options);
+  SE3 target_from_source;
+  Eigen::Matrix3f rotation_f;
+  Eigen::Vector3f translation_f;
+  float max_distance_m;
+  float min_cos_normal_angle;
+  float min_planarity;
+  RobustKernel kernel;
+  double kernel_scale_m;
+};
+
+struct LinearizedTerm {
+  double residual = 0;                      // m
+  double weight = 0;                        // IRLS weight
+  Eigen::Matrix<double, 1, 6> jacobian;     // dr/dxi (right perturbation)
+};
+
+// Associates source point p (normal n, zero if unknown) under ctx and linearises.
+// Returns false when the point has no admissible match.
+bool LinearizePoint(const IcpTarget& target,
+                    const LinearizationContext& ctx,
+                    const Eigen::Vector3f& p,
+                    const Eigen::Vector3f& n,
+                    LinearizedTerm* term);
+
+}  // namespace internal
+}  // namespace lisfm

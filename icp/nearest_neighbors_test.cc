@@ -1,0 +1,78 @@
+#include "icp/nearest_neighbors.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include <gtest/gtest.h>
+
+#include "core/errors.h"
+#include "tests/common/test_utils.h"
+
+namespace lisfm {
+namespace {
+
+PointSet RandomPoints(int n) {
+  std::uniform_real_distribution<float> u(-5.f, 5.f);
+  PointSet pts(n);
+  for (auto& p : pts) p = Eigen::Vector3f(u(test::Rng()), u(test::Rng()), u(test::Rng()));
+  return pts;
+}
+
+// kNN and radius search must equal brute force exactly (same float distances).
+TEST(KdTree, MatchesBruteForce) {
+  const PointSet pts = RandomPoints(3000);
+  const KdTree tree(pts);
+  const PointSet queries = RandomPoints(200);
+  for (const auto& q : queries) {
+    std::vector<float> d2(pts.size());
+    for (size_t i = 0; i < pts.size(); ++i) d2[i] = (pts[i] - q).squaredNorm();
+    std::vector<float> sorted = d2;
+    std::sort(sorted.begin(), sorted.end());
+    uint32_t idx[8];
+    float dist[8];
+    ASSERT_EQ(tree.Knn(q, 8, idx, dist), 8u);
+    for (int k = 0; k < 8; ++k) {
+      EXPECT_FLOAT_EQ(dist[k], sorted[k]);
+      EXPECT_FLOAT_EQ(d2[idx[k]], sorted[k]);
+    }
+    uint32_t nearest;
+    float nearest_d2;
+    ASSERT_TRUE(tree.Nearest(q, &nearest, &nearest_d2));
+    EXPECT_FLOAT_EQ(nearest_d2, sorted[0]);
+    std::vector<uint32_t> in_radius;
+    std::vector<float> in_radius_d2;
+    tree.Radius(q, 1.0f, &in_radius, &in_radius_d2);
+    const size_t expected = std::count_if(d2.begin(), d2.end(), [](float d) { return d <= 1.0f; });
+    EXPECT_EQ(in_radius.size(), expected);
+  }
+}
+
+TEST(KdTree, EmptyAndNonFinite) {
+  const KdTree empty(PointSet{});
+  uint32_t idx;
+  float d2;
+  EXPECT_FALSE(empty.Nearest(Eigen::Vector3f::Zero(), &idx, &d2));
+  PointSet bad = RandomPoints(10);
+  bad[7].y() = std::nanf("");
+  try {
+    KdTree tree(bad, "scan.pcd");
+    FAIL() << "expected InputError";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("point 7"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("scan.pcd"), std::string::npos) << e.what();
+  }
+}
+
+// Voxel centroids: two points in one voxel average, separate voxels stay apart.
+TEST(VoxelDownsamplePoints, Centroids) {
+  const PointSet pts = {{0.1f, 0.1f, 0.1f}, {0.3f, 0.3f, 0.3f}, {1.5f, 0.2f, 0.2f},
+                        {std::nanf(""), 0.f, 0.f}};
+  const PointSet out = VoxelDownsamplePoints(pts, 1.0);
+  ASSERT_EQ(out.size(), 2u);
+  EXPECT_TRUE(out[0].isApprox(Eigen::Vector3f(0.2f, 0.2f, 0.2f), 1e-6f));
+  EXPECT_TRUE(out[1].isApprox(pts[2], 1e-6f));
+  EXPECT_EQ(VoxelDownsamplePoints(pts, 0.0).size(), pts.size());
+}
+
+}  // namespace
+}  // namespace lisfm

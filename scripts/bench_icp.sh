@@ -1,0 +1,17 @@
+#!/usr/bin/env bash
+# ICP benchmark (issue 5): lisfm point-to-plane / Bayesian ICP vs PCL
+# IterativeClosestPointWithNormals, PCL GICP and Open3D point-to-plane on the real
+# pairs of ../shared/data (registration_lidar_pair, bunny bun0->bun4, consecutive
+# lidar_balm_realworld_subset scans 30..39). Whole process per method: load,
+# voxel downsampling, normals, registration (median of REPEATS runs).
+# Usage: scripts/bench_icp.sh [REPEATS]   (prints markdown tables for docs/BENCHMARKS.md)
+set -euo pipefail
+source "$(dirname "${BASH_SOURCE[0]}")/common.sh"
+REPEATS="${1:-3}"
+mkdir -p "$LISFM_BUILD_DIR"
+cmake -S "$LISFM_ROOT" -B "$LISFM_BUILD_DIR" -DCMAKE_BUILD_TYPE=Release \
+  -DLISFM_BENCHMARKS_ENABLED=ON >"$LISFM_BUILD_DIR.cmake.log" 2>&1 \
+  || { cat "$LISFM_BUILD_DIR.cmake.log"; exit 1; }
+cmake --build "$LISFM_BUILD_DIR" --target lisfm_icp_bench -j"$LISFM_JOBS"
+echo "CPU: $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | xargs), $(nproc) threads"
+"$LISFM_BUILD_DIR/icp/lisfm_icp_bench" "$LISFM_SHARED_DATA" "$REPEATS" --knn

@@ -1,0 +1,26 @@
+#!/usr/bin/env bash
+# Benchmark of `lisfm simulate`: a 120 s office sequence (1200 spinning scans,
+# 5 cameras at 2 Hz = 1200 images, IMU 400 Hz). Prints a table for
+# docs/BENCHMARKS_simulate.md.  Usage: scripts/bench_simulate.sh [build_dir]
+set -euo pipefail
+BUILD="${1:-build}"
+LISFM="$BUILD/apps/lisfm"
+OUT="$(mktemp -d)"
+trap 'rm -rf "$OUT"' EXIT
+CPU="$(lscpu | sed -n 's/^Model name:[[:space:]]*//p' | head -1)"
+echo "CPU: $CPU, $(nproc) cores"
+run() {
+  local name="$1"; shift
+  local t0 t1
+  t0=$(date +%s.%N)
+  "$LISFM" simulate --output_path "$OUT/$name" "$@" > "$OUT/$name.log" 2>&1
+  t1=$(date +%s.%N)
+  local size
+  size=$(du -sh "$OUT/$name" | cut -f1)
+  printf "| %-34s | %8.1f | %6s |\n" "$name $*" "$(echo "$t1 - $t0" | bc)" "$size"
+  grep -o "Time [0-9.]* s (scene.*)" "$OUT/$name.log" | sed 's/^/    /' || true
+}
+echo "| run | wall s | size |"
+echo "|---|---|---|"
+run office120 --scene office --duration 120 --camera_rate 2 --lidars spinning
+run office120_lidar_only --scene office --duration 120 --camera_rate 0 --lidars spinning

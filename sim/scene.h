@@ -1,0 +1,123 @@
+// Procedural simulation scenes (DESIGN.md "sim/"): triangle meshes in the
+// scene frame (metres, z up, gravity along -z) with one surface id per
+// triangle, ray cast through an Embree 3 BVH.
+//
+// Three scene types are generated from a seed: "office" (rooms around a
+// corridor loop, doorways, pillars, furniture boxes), "staircase" (a narrow
+// two-storey stairwell with corridors at both levels, LiDAR-degenerate) and
+// "hall" (a parking-garage-size hall with a pillar grid and parked cars). Each
+// type also defines the walking route that generated motion follows
+// (WalkingRoute), so scene and motion always agree.
+//
+// Thread safety: after Build(), Intersect() may be called concurrently.
+#pragma once
+
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "core/types.h"
+
+namespace lisfm {
+namespace sim {
+
+// Parameters of a procedural scene; configs/sim_<type>.yaml lists them with
+// their defaults. Sizes in metres.
+struct SceneOptions {
+  std::string type = "office";  // office | staircase | hall
+  int seed = 1;                 // layout and texture seed
+  double length = 40.0;         // footprint along x (office, hall), m
+  double width = 24.0;          // footprint along y (office, hall), m
+  double height = 3.0;          // floor-to-ceiling height, m
+  double corridor_width = 3.0;  // office corridor width, m
+  double room_depth = 5.0;      // office room depth, m
+  int furniture_per_room = 3;   // boxes per office room
+  double pillar_spacing = 8.0;  // hall pillar grid, m
+  double car_density = 0.6;     // fraction of hall parking bays occupied
+  double texture_scale = 1.0;   // multiplies the spatial frequencies of the texture
+
+  // Throws InputError naming `where` for out-of-range values.
+  void Check(const std::string& where) const;
+};
+
+// Returns the defaults of a scene type; throws InputError for an unknown type.
+SceneOptions DefaultSceneOptions(const std::string& type);
+// Reads `configs/sim_*.yaml` (keys as the SceneOptions fields; missing keys keep
+// the defaults of its `type`). Throws InputError for unknown keys/bad values.
+SceneOptions ReadSceneOptions(const std::string& path);
+
+// Resolves `--scene`: a type name ("office", "staircase", "hall") or a YAML path.
+SceneOptions ResolveSceneOptions(const std::string& scene);
+
+struct Triangle {
+  Eigen::Vector3f a, b, c;
+  uint32_t surface_id = 0;
+};
+
+struct RayHit {
+  bool hit = false;
+  float distance = 0;    // along the unit ray direction, m
+  Eigen::Vector3f normal = Eigen::Vector3f::Zero();  // unit geometric normal, facing the ray origin
+  uint32_t surface_id = 0;
+};
+
+// The route a person walks through a scene: 3D waypoints of the device
+// position (device height above the floor already added), in order.
+struct WalkingRoute {
+  std::vector<Vec3> waypoints;
+  bool closed = false;  // true: loop back to the first waypoint; false: ping-pong
+};
+
+class Scene {
+ public:
+  Scene();
+  ~Scene();
+  Scene(const Scene&) = delete;
+  Scene& operator=(const Scene&) = delete;
+
+  // Generates the scene of `options`. If `keep_clear` is not empty (a real
+  // trajectory's positions), the footprint grows to contain it with 3 m margin
+  // and every interior obstacle within 0.7 m of it (horizontally) is removed,
+  // so that the trajectory never passes through geometry.
+  static std::unique_ptr<Scene> Generate(const SceneOptions& options,
+                                         const std::vector<Vec3>& keep_clear = {});
+  // A scene from explicit triangles (tests).
+  static std::unique_ptr<Scene> FromTriangles(std::vector<Triangle> triangles);
+
+  // Closest hit along `origin + s * direction`, s in [min_range, max_range];
+  // `direction` must be unit length.
+  RayHit Intersect(const Vec3& origin,
+                   const Vec3& direction,
+                   double min_range = 0.0,
+                   double max_range = 1e4) const;
+  // Eight rays at once (coherent packets, e.g. camera rows); `valid[i]` = 0
+  // skips ray i.
+  void Intersect8(const int valid[8],
+                  const float origin[3],
+                  const float directions[8][3],
+                  float max_range,
+                  RayHit hits[8]) const;
+
+  const std::vector<Triangle>& triangles() const { return triangles_; }
+  const WalkingRoute& route() const { return route_; }
+  const SceneOptions& options() const { return options_; }
+  int num_surfaces() const { return num_surfaces_; }
+  Eigen::AlignedBox3d Bounds() const;
+
+  // Writes the mesh as binary PLY (vertex x y z float, face list, per-face
+  // uchar red green blue from the surface id), atomically.
+  void WritePly(const std::string& path) const;
+
+ private:
+  void Build();
+
+  SceneOptions options_;
+  std::vector<Triangle> triangles_;
+  WalkingRoute route_;
+  int num_surfaces_ = 0;
+  struct EmbreeState;
+  std::unique_ptr<EmbreeState> embree_;
+};
+
+}  // namespace sim
+}  // namespace lisfm

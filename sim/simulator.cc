@@ -1,0 +1,460 @@
+#include "sim/simulator.h"
+
+#include <unistd.h>
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <filesystem>
+#include <fstream>
+#include <iomanip>
+#include <memory>
+#include <random>
+#include <sstream>
+
+#include <opencv2/imgcodecs.hpp>
+#include <tbb/parallel_for.h>
+
+#include "core/errors.h"
+#include "core/file_utils.h"
+#include "core/io/cloud_io.h"
+#include "core/io/rig_io.h"
+#include "core/io/trajectory_io.h"
+#include "core/logging.h"
+#include "core/progress.h"
+#include "sim/camera_simulator.h"
+#include "sim/imu_simulator.h"
+#include "sim/lidar_simulator.h"
+#include "sim/motion.h"
+#include "sim/scene.h"
+
+namespace lisfm {
+namespace sim {
+namespace {
+
+namespace fs = std::filesystem;
+
+// HILTI 2022 pole tip in the IMU frame (evaluation-2022, REFERENCES.md sec. 7):
+// control points are world_from_imu * kPoleTipInImu, as core/evaluation scores them.
+const Vec3 kPoleTipInImu(0.059, -0.00855, 0.1964);
+
+double Seconds(std::chrono::steady_clock::time_point since) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - since).count();
+}
+
+std::vector<std::string> SplitList(const std::string& s) {
+  std::vector<std::string> out;
+  for (const std::string& t : SplitString(s, ",", true)) out.push_back(Trim(t));
+  return out;
+}
+
+RigLidar DefaultLidar(LidarType type) {
+  RigLidar lidar;
+  lidar.type = type;
+  if (type == LidarType::kSpinning) {
+    // HILTI 2022 lidar_calibration.yaml, PandarXT-32: quaternion (x, y, z, w).
+    lidar.rostopic = "/hesai/pandar";
+    lidar.imu_from_lidar = SE3(Quat(0.0, 0.7071068, -0.7071068, 0.0).normalized(),
+                               Vec3(-0.001, -0.00855, 0.055));
+    lidar.rings = 32;
+    lidar.min_range = 0.05;
+    lidar.max_range = 120.0;
+    lidar.scan_rate = 10.0;
+  } else {
+    // Livox MID-70-like, looking forward: lidar x = imu x, lidar z = up = -imu z,
+    // 12 cm in front of and 6 cm above the IMU.
+    lidar.rostopic = "/livox/lidar";
+    lidar.imu_from_lidar = SE3(Mat3(Vec3(1, -1, -1).asDiagonal()), Vec3(0.12, 0.0, -0.06));
+    lidar.rings = 0;
+    lidar.min_range = 0.05;
+    lidar.max_range = 90.0;
+    lidar.scan_rate = 10.0;
+  }
+  return lidar;
+}
+
+std::string FormatDouble(double v) {
+  std::ostringstream s;
+  s << std::setprecision(9) << v;
+  return s.str();
+}
+
+}  // namespace
+
+void SimulatorOptions::Check() const {
+  if (output_path.empty()) throw UsageError("--output_path is required");
+  if (!(duration <= 1e5)) throw UsageError("--duration must be <= 1e5 s");
+  if (trajectory_path.empty() && !(duration > 0.5)) {
+    throw UsageError("--duration must be > 0.5 s, found " + FormatDouble(duration));
+  }
+  if (!(camera_rate >= 0 && camera_rate <= 100)) {
+    throw UsageError("--camera_rate must be in [0, 100] Hz, found " + FormatDouble(camera_rate));
+  }
+  if (!(noise_scale >= 0 && noise_scale <= 100)) {
+    throw UsageError("--noise_scale must be in [0, 100], found " + FormatDouble(noise_scale));
+  }
+  if (supersampling < 1 || supersampling > 8) {
+    throw UsageError("--supersampling must be in [1, 8], found " + std::to_string(supersampling));
+  }
+  if (!(rgbd_rate > 0 && rgbd_rate <= 100)) {
+    throw UsageError("--rgbd_rate must be in (0, 100] Hz, found " + FormatDouble(rgbd_rate));
+  }
+  for (const std::string& l : SplitList(lidars)) {
+    if (l != "spinning" && l != "livox" && l != "none") {
+      throw UsageError("--lidars: expected a comma list of spinning, livox or none, found '" +
+                       l + "'");
+    }
+  }
+}
+
+Rig PrepareRig(const Rig& input, const std::string& lidars) {
+  Rig rig = input;
+  rig.lidars.clear();
+  for (const std::string& name : SplitList(lidars)) {
+    if (name == "none") continue;
+    const LidarType type = ParseLidarType(name);
+    RigLidar lidar = DefaultLidar(type);
+    for (const RigLidar& l : input.lidars) {
+      if (l.type == type) {
+        lidar = l;
+        break;
+      }
+    }
+    lidar.name = "lidar" + std::to_string(rig.lidars.size());
+    lidar.time_offset_s = 0.0;
+    rig.lidars.push_back(lidar);
+  }
+  for (RigCamera& cam : rig.cameras) cam.timeshift_cam_imu_s = 0.0;
+  return rig;
+}
+
+SimulationSummary Simulate(const SimulatorOptions& options,
+                           const Rig& input_rig,
+                           const std::function<void(const std::string&)>& before_commit) {
+  options.Check();
+  const auto t_start = std::chrono::steady_clock::now();
+  SimulationSummary summary;
+  const std::string output = options.output_path;
+  if (fs::exists(output) && !options.overwrite) {
+    throw UsageError("--output_path " + output +
+                     " exists; choose a new folder or pass --overwrite 1");
+  }
+  const Rig rig = PrepareRig(input_rig, options.lidars);
+
+  // ---- scene and motion ----
+  LogStage("scene and motion");
+  SceneOptions scene_options = ResolveSceneOptions(options.scene);
+  scene_options.seed = scene_options.seed * 1000003 + options.seed;
+  SplineTrajectory trajectory;
+  std::vector<StationaryPeriod> stationary;
+  std::unique_ptr<Scene> scene;
+  TimestampNs start_ns = 0, end_ns = 0;
+  if (!options.trajectory_path.empty()) {
+    if (scene_options.type == "staircase") {
+      throw UsageError("--trajectory_path needs --scene office or hall (the staircase is "
+                       "built around its own route)");
+    }
+    const Trajectory samples = ReadTum(options.trajectory_path);
+    if (samples.size() < 10) {
+      throw InputError(options.trajectory_path, "line 1",
+                       "expected at least 10 poses, found " + std::to_string(samples.size()));
+    }
+    trajectory = SplineTrajectory::Fit(samples, 0.1);
+    // Place it: footprint centre at the scene centre, 5th percentile height at
+    // 1.4 m above the floor; grow the scene to contain it with 3 m margin.
+    std::vector<double> zs;
+    Eigen::AlignedBox3d box;
+    for (const StampedPose& p : samples.poses()) {
+      box.extend(p.pose.translation());
+      zs.push_back(p.pose.translation().z());
+    }
+    std::sort(zs.begin(), zs.end());
+    const double z05 = zs[zs.size() / 20];
+    const Vec3 extent = box.max() - box.min();
+    scene_options.length = std::max(scene_options.length, extent.x() + 6.0);
+    scene_options.width = std::max(scene_options.width, extent.y() + 6.0);
+    scene_options.height = std::max(scene_options.height, (box.max().z() - z05) + 1.4 + 1.0);
+    const Vec3 offset(scene_options.length / 2 - box.center().x(),
+                      scene_options.width / 2 - box.center().y(), 1.4 - z05);
+    trajectory.TransformWorld(SE3(Quat::Identity(), offset));
+    start_ns = trajectory.start_ns();
+    end_ns = trajectory.end_ns();
+    if (options.duration > 0) end_ns = std::min(end_ns, start_ns + SecondsToNs(options.duration));
+    std::vector<Vec3> keep_clear;
+    for (TimestampNs t = start_ns; t <= end_ns; t += 50000000) {
+      keep_clear.push_back(trajectory.Pose(t).translation());
+    }
+    scene = Scene::Generate(scene_options, keep_clear);
+    stationary = FindStationaryPeriods(trajectory);
+  } else {
+    scene = Scene::Generate(scene_options);
+    start_ns = kDefaultStartNs;
+    trajectory = GenerateWalking(scene->route(), options.duration, start_ns,
+                                 static_cast<uint32_t>(options.seed), WalkingOptions(),
+                                 &stationary);
+    end_ns = start_ns + SecondsToNs(options.duration);
+  }
+  summary.scene_type = scene_options.type;
+  summary.num_triangles = scene->triangles().size();
+  summary.duration_s = NsToSeconds(end_ns - start_ns);
+  const TextureOptions texture{static_cast<uint32_t>(scene_options.seed),
+                               static_cast<float>(scene_options.texture_scale)};
+  summary.seconds_scene = Seconds(t_start);
+
+  // ---- folder ----
+  const std::string temp = output + ".tmp-" + std::to_string(getpid());
+  if (fs::exists(temp)) fs::remove_all(temp);
+  CreateDirs(temp);
+  struct TempGuard {
+    std::string path;
+    bool keep = false;
+    ~TempGuard() {
+      std::error_code ec;
+      if (!keep) fs::remove_all(path, ec);
+    }
+  } guard{temp};
+
+  WriteRigYaml(JoinPaths(temp, "rig.yaml"), rig,
+               "lisfm simulate: the rig of this sequence (time offsets 0: stamps are on the "
+               "IMU clock)");
+  scene->WritePly(JoinPaths(temp, "scene.ply"));
+
+  // ---- ground truth (100 Hz) and control points ----
+  {
+    Trajectory gt;
+    for (TimestampNs t = start_ns; t <= end_ns; t += 10000000) {
+      gt.PushBack({t, trajectory.Pose(t)});
+    }
+    WriteTum(JoinPaths(temp, "groundtruth.txt"), gt);
+    WriteEurocCsv(JoinPaths(temp, "groundtruth.csv"), gt);
+    for (size_t i = 1; i < gt.size(); ++i) {
+      summary.path_length_m +=
+          (gt[i].pose.translation() - gt[i - 1].pose.translation()).norm();
+    }
+    std::ostringstream cp;
+    cp << "# timestamp_s x y z qx qy qz qw: HILTI-style control points, the pole tip "
+          "world_from_imu * (0.059, -0.00855, 0.1964) in the middle of each rest\n";
+    for (const StationaryPeriod& p : stationary) {
+      if (p.end_ns > end_ns || p.start_ns < start_ns) continue;
+      const TimestampNs t = p.start_ns + (p.end_ns - p.start_ns) / 2;
+      const Vec3 tip = trajectory.Pose(t) * kPoleTipInImu;
+      cp << FormatNsAsSeconds(t) << std::setprecision(17) << " " << tip.x() << " " << tip.y()
+         << " " << tip.z() << " 0 0 0 1\n";
+      ++summary.num_control_points;
+    }
+    WriteFileAtomically(JoinPaths(temp, "controlpoints.txt"), cp.str());
+  }
+
+  // ---- IMU ----
+  LogStage("IMU");
+  auto t_phase = std::chrono::steady_clock::now();
+  {
+    ImuSimOptions imu_options;
+    imu_options.noise_scale = options.noise_scale;
+    imu_options.seed = static_cast<uint64_t>(options.seed);
+    std::vector<ImuBias> biases;
+    const std::vector<ImuSample> imu =
+        SimulateImu(trajectory, rig.imu, start_ns, end_ns, imu_options, &biases);
+    summary.num_imu = imu.size();
+    CreateDirs(JoinPaths(temp, "imu0"));
+    std::ostringstream s, b;
+    s << std::setprecision(10);
+    b << std::setprecision(10);
+    s << "#timestamp [ns],w_RS_S_x [rad s^-1],w_RS_S_y [rad s^-1],w_RS_S_z [rad s^-1],"
+         "a_RS_S_x [m s^-2],a_RS_S_y [m s^-2],a_RS_S_z [m s^-2]\n";
+    b << "#timestamp [ns],b_w_x [rad s^-1],b_w_y [rad s^-1],b_w_z [rad s^-1],"
+         "b_a_x [m s^-2],b_a_y [m s^-2],b_a_z [m s^-2]\n";
+    for (size_t i = 0; i < imu.size(); ++i) {
+      const ImuSample& m = imu[i];
+      s << m.t_ns << "," << m.gyro.x() << "," << m.gyro.y() << "," << m.gyro.z() << ","
+        << m.accel.x() << "," << m.accel.y() << "," << m.accel.z() << "\n";
+      const ImuBias& q = biases[i];
+      b << q.t_ns << "," << q.gyro.x() << "," << q.gyro.y() << "," << q.gyro.z() << ","
+        << q.accel.x() << "," << q.accel.y() << "," << q.accel.z() << "\n";
+    }
+    WriteFileAtomically(JoinPaths(temp, "imu0/data.csv"), s.str());
+    WriteFileAtomically(JoinPaths(temp, "imu0/bias_groundtruth.csv"), b.str());
+  }
+  summary.seconds_imu = Seconds(t_phase);
+
+  // ---- work list: LiDAR scans and rig frames ----
+  std::vector<std::vector<TimestampNs>> scan_starts(rig.lidars.size());
+  size_t total_units = 0;
+  for (size_t k = 0; k < rig.lidars.size(); ++k) {
+    const double period = 1.0 / rig.lidars[k].scan_rate;
+    for (int64_t i = 0;; ++i) {
+      const TimestampNs t0 = start_ns + SecondsToNs(i * period);
+      if (t0 + SecondsToNs(period) > end_ns) break;
+      scan_starts[k].push_back(t0);
+    }
+    total_units += scan_starts[k].size();
+  }
+  std::vector<TimestampNs> frame_times;
+  if (options.camera_rate > 0 && !rig.cameras.empty()) {
+    for (int64_t i = 0;; ++i) {
+      const TimestampNs t = start_ns + SecondsToNs(i / options.camera_rate);
+      if (t > end_ns) break;
+      frame_times.push_back(t);
+    }
+  }
+  total_units += frame_times.size() * rig.cameras.size();
+  ProgressReporter progress("simulate", static_cast<int64_t>(total_units));
+
+  // ---- LiDARs ----
+  LogStage("LiDAR");
+  t_phase = std::chrono::steady_clock::now();
+  for (size_t k = 0; k < rig.lidars.size(); ++k) {
+    const RigLidar& lidar = rig.lidars[k];
+    const std::string dir = JoinPaths(temp, lidar.name);
+    CreateDirs(JoinPaths(dir, "data"));
+    LidarSimOptions lidar_options;
+    lidar_options.noise_scale = options.noise_scale;
+    lidar_options.seed = static_cast<uint64_t>(options.seed) * 31 + k;
+    const LidarSimulator simulator(*scene, trajectory, lidar, texture, lidar_options);
+    std::vector<TimestampNs> stamps(scan_starts[k].size());
+    std::vector<size_t> counts(scan_starts[k].size());
+    tbb::parallel_for(size_t{0}, scan_starts[k].size(), [&](size_t i) {
+      PointCloud cloud = simulator.SimulateScan(scan_starts[k][i], static_cast<int64_t>(i));
+      stamps[i] = cloud.stamp_ns;
+      counts[i] = cloud.size();
+      WritePcd(JoinPaths(dir, "data/" + std::to_string(cloud.stamp_ns) + ".pcd"), cloud, true);
+      progress.Add(1);
+    });
+    std::ostringstream csv;
+    csv << "#timestamp [ns],filename\n";
+    size_t points = 0;
+    for (size_t i = 0; i < stamps.size(); ++i) {
+      csv << stamps[i] << "," << stamps[i] << ".pcd\n";
+      points += counts[i];
+    }
+    WriteFileAtomically(JoinPaths(dir, "data.csv"), csv.str());
+    summary.num_scans.push_back(stamps.size());
+    summary.num_points.push_back(points);
+  }
+  summary.seconds_lidar = Seconds(t_phase);
+
+  // ---- cameras ----
+  LogStage("cameras");
+  t_phase = std::chrono::steady_clock::now();
+  CameraSimOptions camera_options;
+  camera_options.supersampling = options.supersampling;
+  camera_options.color = options.color;
+  camera_options.noise_scale = options.noise_scale;
+  if (!frame_times.empty()) {
+    std::vector<std::unique_ptr<CameraRenderer>> renderers;
+    for (const RigCamera& cam : rig.cameras) {
+      renderers.push_back(
+          std::make_unique<CameraRenderer>(*scene, cam.model, texture, camera_options));
+      CreateDirs(JoinPaths(temp, cam.name + "/data"));
+    }
+    const std::vector<int> png_params = {cv::IMWRITE_PNG_COMPRESSION, 1};
+    const size_t num_cams = rig.cameras.size();
+    std::atomic<bool> write_failed{false};
+    tbb::parallel_for(size_t{0}, frame_times.size() * num_cams, [&](size_t job) {
+      const size_t f = job / num_cams, c = job % num_cams;
+      const RigCamera& cam = rig.cameras[c];
+      const SE3 world_from_cam =
+          trajectory.Pose(frame_times[f]) * cam.cam_from_imu.Inverse();
+      const cv::Mat image =
+          renderers[c]->Render(world_from_cam, static_cast<uint64_t>(options.seed) * 1000003 +
+                                                   job * 7919 + 1);
+      const std::string path = JoinPaths(
+          temp, cam.name + "/data/" + std::to_string(frame_times[f]) + ".png");
+      if (!cv::imwrite(path, image, png_params)) write_failed = true;
+      progress.Add(1);
+    });
+    if (write_failed) throw InputError(temp, "camera images", "cv::imwrite failed");
+    for (const RigCamera& cam : rig.cameras) {
+      std::ostringstream csv;
+      csv << "#timestamp [ns],filename\n";
+      for (TimestampNs t : frame_times) csv << t << "," << t << ".png\n";
+      WriteFileAtomically(JoinPaths(temp, cam.name + "/data.csv"), csv.str());
+    }
+    summary.num_images = frame_times.size() * num_cams;
+  }
+  progress.Finish();
+
+  // ---- RGB-D ----
+  if (options.rgbd) {
+    LogStage("RGB-D");
+    // Kinect-v1-like pinhole 640x480 looking forward, 5 cm right of the IMU.
+    CameraModel model;
+    model.width = 640;
+    model.height = 480;
+    model.fx = model.fy = 525.0;
+    model.cx = 319.5;
+    model.cy = 239.5;
+    model.distortion = DistortionModel::kNone;
+    const Mat3 cam_from_imu_rot = (Mat3() << 0, 1, 0, 0, 0, 1, 1, 0, 0).finished();
+    const SE3 cam_from_imu = SE3(cam_from_imu_rot, Vec3::Zero()) *
+                             SE3(Quat::Identity(), Vec3(-0.05, -0.05, 0.0));
+    CameraSimOptions rgbd_options = camera_options;
+    rgbd_options.color = true;
+    const CameraRenderer renderer(*scene, model, texture, rgbd_options);
+    const std::string dir = JoinPaths(temp, "rgbd0");
+    CreateDirs(JoinPaths(dir, "rgb"));
+    CreateDirs(JoinPaths(dir, "depth"));
+    std::vector<TimestampNs> times;
+    for (int64_t i = 0;; ++i) {
+      const TimestampNs t = start_ns + SecondsToNs(i / options.rgbd_rate);
+      if (t > end_ns) break;
+      times.push_back(t);
+    }
+    const std::vector<int> png_params = {cv::IMWRITE_PNG_COMPRESSION, 1};
+    tbb::parallel_for(size_t{0}, times.size(), [&](size_t i) {
+      const SE3 world_from_cam = trajectory.Pose(times[i]) * cam_from_imu.Inverse();
+      const cv::Mat rgb = renderer.Render(world_from_cam, 77 + i);
+      const cv::Mat depth = renderer.RenderDepth(world_from_cam);
+      // Depth noise of a structured-light sensor (Nguyen et al. 2012):
+      // sigma_z = 1.2 mm + 1.9 mm * (z - 0.4)^2; holes below 0.4 m, beyond
+      // 6 m, at 1 % random pixels and along depth discontinuities.
+      std::mt19937 rng(static_cast<uint32_t>(options.seed * 7717 + i));
+      std::normal_distribution<float> normal(0.f, 1.f);
+      std::uniform_real_distribution<float> uniform(0.f, 1.f);
+      cv::Mat depth_mm(depth.rows, depth.cols, CV_16UC1, cv::Scalar(0));
+      for (int y = 1; y + 1 < depth.rows; ++y) {
+        for (int x = 1; x + 1 < depth.cols; ++x) {
+          const float z = depth.at<float>(y, x);
+          if (z < 0.4f || z > 6.0f || uniform(rng) < 0.01f) continue;
+          const float dz = std::max(std::fabs(depth.at<float>(y, x + 1) - z),
+                                    std::fabs(depth.at<float>(y + 1, x) - z));
+          if (dz > 0.05f * z) continue;  // discontinuity shadow
+          const float sigma = static_cast<float>(options.noise_scale) *
+                              (0.0012f + 0.0019f * (z - 0.4f) * (z - 0.4f));
+          depth_mm.at<uint16_t>(y, x) =
+              cv::saturate_cast<uint16_t>(1000.f * (z + sigma * normal(rng)));
+        }
+      }
+      cv::imwrite(JoinPaths(dir, "rgb/" + std::to_string(times[i]) + ".png"), rgb, png_params);
+      cv::imwrite(JoinPaths(dir, "depth/" + std::to_string(times[i]) + ".png"), depth_mm,
+                  png_params);
+    });
+    std::ostringstream csv;
+    csv << "#timestamp [ns],rgb,depth\n";
+    for (TimestampNs t : times) csv << t << ",rgb/" << t << ".png,depth/" << t << ".png\n";
+    WriteFileAtomically(JoinPaths(dir, "data.csv"), csv.str());
+    std::ostringstream cam;
+    cam << std::setprecision(17)
+        << "# RGB-D camera: pinhole, no distortion; depth PNG uint16 in mm (0 = missing),\n"
+           "# depth = z along the optical axis; rgb and depth registered (same pixel grid).\n"
+        << "intrinsics: [" << model.fx << ", " << model.fy << ", " << model.cx << ", "
+        << model.cy << "]\nresolution: [640, 480]\ndepth_scale: 1000\nT_cam_imu:\n";
+    const Mat4 m = cam_from_imu.Matrix();
+    for (int r = 0; r < 4; ++r) {
+      cam << "- [" << m(r, 0) << ", " << m(r, 1) << ", " << m(r, 2) << ", " << m(r, 3) << "]\n";
+    }
+    WriteFileAtomically(JoinPaths(dir, "camera.yaml"), cam.str());
+    summary.num_rgbd = times.size();
+  }
+  summary.seconds_cameras = Seconds(t_phase);
+
+  if (before_commit) before_commit(temp);
+  if (fs::exists(output)) fs::remove_all(output);
+  fs::rename(temp, output);
+  guard.keep = true;
+  summary.seconds_total = Seconds(t_start);
+  return summary;
+}
+
+}  // namespace sim
+}  // namespace lisfm

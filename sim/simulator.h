@@ -1,0 +1,75 @@
+// `lisfm simulate` as a library call: scene + motion + IMU + LiDARs + cameras
+// (+ optional RGB-D) written as a sequence folder (DESIGN.md "Formats";
+// docs/FORMATS_sequence.md describes the folder as built).
+//
+// Frames and times: the world is the scene frame (z up, gravity -z); the body
+// is the IMU frame; all stamps are int64 ns on the IMU clock (camera and LiDAR
+// time offsets of the written rig.yaml are 0). Generated sequences start at
+// kDefaultStartNs; sequences driven by a TUM file keep its stamps.
+//
+// Output is written into `<output_path>.tmp-<pid>` and renamed at the end, so
+// a failed run never leaves a folder that looks complete. Deterministic for a
+// given seed (TBB only changes the order of work, never the values).
+#pragma once
+
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "core/rig.h"
+#include "core/time.h"
+
+namespace lisfm {
+namespace sim {
+
+constexpr TimestampNs kDefaultStartNs = 1700000000LL * kNsPerSecond;
+
+struct SimulatorOptions {
+  std::string scene = "office";   // office | staircase | hall | path to configs/sim_*.yaml
+  std::string trajectory_path;    // optional TUM file of real motion (world_from_imu)
+  double duration = 60.0;         // s; with a TUM file: at most its length (<= 0: all of it)
+  double camera_rate = 2.0;       // Hz, rig frames per second (0 = no cameras)
+  std::string lidars = "spinning";  // comma list of spinning, livox (or "none")
+  double noise_scale = 1.0;       // multiplies every sensor noise and bias (0 = exact)
+  int seed = 1;                   // scene layout, texture, motion and noise seed
+  std::string output_path;        // the sequence folder to create
+  int supersampling = 1;          // camera rays per pixel = n x n
+  bool color = false;             // colour (BGR) instead of grayscale images
+  bool rgbd = false;              // add an RGB-D camera (rgbd0/)
+  double rgbd_rate = 5.0;         // Hz
+  bool overwrite = false;         // replace an existing output folder
+
+  // Throws UsageError (bad option values) naming the option.
+  void Check() const;
+};
+
+struct SimulationSummary {
+  std::string scene_type;
+  double duration_s = 0;
+  double path_length_m = 0;
+  size_t num_imu = 0;
+  std::vector<size_t> num_scans;       // per LiDAR
+  std::vector<size_t> num_points;      // per LiDAR, all scans
+  size_t num_images = 0;               // all cameras
+  size_t num_rgbd = 0;
+  size_t num_control_points = 0;
+  size_t num_triangles = 0;
+  double seconds_scene = 0, seconds_imu = 0, seconds_lidar = 0, seconds_cameras = 0,
+         seconds_total = 0;
+};
+
+// Adapts `rig` to the requested LiDAR list: keeps the rig's LiDAR of each
+// requested type, adds a default one where the rig has none (spinning: the
+// HILTI 2022 XT-32 mounting; livox: kLivoxImuFromLidar), drops the others,
+// and sets all time offsets to 0 (the folder's stamps are on the IMU clock).
+Rig PrepareRig(const Rig& rig, const std::string& lidars);
+
+// Runs the simulation and writes the folder. `before_commit` (optional) is
+// called with the temporary folder before the final rename (e.g. to write the
+// effective config). Throws InputError/UsageError for bad input.
+SimulationSummary Simulate(const SimulatorOptions& options,
+                           const Rig& rig,
+                           const std::function<void(const std::string&)>& before_commit = {});
+
+}  // namespace sim
+}  // namespace lisfm

@@ -1,0 +1,177 @@
+// End-to-end tests of `lisfm simulate` (the command and sim::Simulate):
+// folder layout, readability by the core readers, determinism, bad input.
+#include "sim/simulator.h"
+
+#include <filesystem>
+
+#include <gtest/gtest.h>
+
+#include "core/file_utils.h"
+#include "core/io/cloud_io.h"
+#include "core/io/rig_io.h"
+#include "core/io/trajectory_io.h"
+#include "tests/common/test_utils.h"
+
+namespace lisfm {
+namespace sim {
+namespace {
+
+namespace fs = std::filesystem;
+
+int CountDataLines(const std::string& path) {
+  LineReader reader(path);
+  std::string line;
+  int n = 0;
+  while (reader.Next(&line)) {
+    if (!line.empty() && line[0] != '#') ++n;
+  }
+  return n;
+}
+
+Rig TestRig() {
+  if (!test::SharedData("hilti_exp4_small/calibration").empty()) {
+    return LoadHiltiCalibration(test::SharedData("hilti_exp4_small/calibration"));
+  }
+  Rig rig;  // one pinhole camera when the real calibration is missing
+  RigCamera cam;
+  cam.name = "cam0";
+  cam.model.width = 320;
+  cam.model.height = 240;
+  cam.model.fx = cam.model.fy = 200;
+  cam.model.cx = 160;
+  cam.model.cy = 120;
+  cam.cam_from_imu = SE3((Mat3() << 0, 1, 0, 0, 0, 1, 1, 0, 0).finished(), Vec3::Zero());
+  rig.cameras.push_back(cam);
+  return rig;
+}
+
+TEST(Simulate, WritesACompleteSequenceFolder) {
+  test::TempDir dir;
+  SimulatorOptions options;
+  options.duration = 8.0;  // long enough for three rests (control points)
+  options.camera_rate = 0.5;
+  options.lidars = "spinning,livox";
+  options.rgbd = true;
+  options.rgbd_rate = 0.5;
+  options.output_path = dir.File("seq");
+  const Rig rig = TestRig();
+  const SimulationSummary s = Simulate(options, rig);
+  const std::string out = options.output_path;
+  EXPECT_FALSE(fs::exists(out + ".tmp-" + std::to_string(getpid())));
+  const Rig written = ReadRigYaml(JoinPaths(out, "rig.yaml"));
+  ASSERT_EQ(written.lidars.size(), 2u);
+  EXPECT_EQ(written.lidars[1].type, LidarType::kLivox);
+  EXPECT_EQ(written.cameras.size(), rig.cameras.size());
+  EXPECT_EQ(CountDataLines(JoinPaths(out, "imu0/data.csv")), 8 * 400 + 1);
+  EXPECT_EQ(CountDataLines(JoinPaths(out, "lidar0/data.csv")), 80);
+  EXPECT_EQ(CountDataLines(JoinPaths(out, "lidar1/data.csv")), 80);
+  EXPECT_EQ(s.num_scans[0], 80u);
+  for (size_t c = 0; c < rig.cameras.size(); ++c) {
+    EXPECT_EQ(CountDataLines(JoinPaths(out, "cam" + std::to_string(c) + "/data.csv")), 5);
+  }
+  EXPECT_EQ(CountDataLines(JoinPaths(out, "rgbd0/data.csv")), 5);
+  // A scan file is named by its stamp and readable; times are inside the period.
+  LineReader reader(JoinPaths(out, "lidar0/data.csv"));
+  std::string line;
+  reader.Next(&line);
+  reader.Next(&line);
+  const auto fields = SplitString(line, ",");
+  ASSERT_EQ(fields.size(), 2u);
+  EXPECT_EQ(fields[1], fields[0] + ".pcd");
+  const PointCloud cloud = ReadPcd(JoinPaths(out, "lidar0/data/" + fields[1]));
+  EXPECT_GT(cloud.size(), 20000u);
+  for (const LidarPoint& p : cloud.points) EXPECT_LT(p.t, 0.1f);
+  const Trajectory gt = ReadTum(JoinPaths(out, "groundtruth.txt"));
+  EXPECT_EQ(gt.size(), 801u);
+  EXPECT_EQ(ReadEurocCsv(JoinPaths(out, "groundtruth.csv")).size(), 801u);
+  EXPECT_EQ(ReadControlPoints(JoinPaths(out, "controlpoints.txt")).size(),
+            s.num_control_points);
+  EXPECT_EQ(s.num_control_points, 3u);
+  EXPECT_TRUE(FileExists(JoinPaths(out, "scene.ply")));
+  EXPECT_TRUE(FileExists(JoinPaths(out, "cam0/data/" + std::to_string(gt[0].t_ns) + ".png")));
+}
+
+TEST(Simulate, DeterministicForASeed) {
+  test::TempDir dir;
+  SimulatorOptions options;
+  options.duration = 1.5;
+  options.camera_rate = 0.0;
+  const Rig rig = TestRig();
+  options.output_path = dir.File("a");
+  Simulate(options, rig);
+  options.output_path = dir.File("b");
+  Simulate(options, rig);
+  EXPECT_EQ(ReadFile(dir.File("a/imu0/data.csv")), ReadFile(dir.File("b/imu0/data.csv")));
+  EXPECT_EQ(ReadFile(dir.File("a/lidar0/data.csv")), ReadFile(dir.File("b/lidar0/data.csv")));
+  LineReader reader(dir.File("a/lidar0/data.csv"));
+  std::string line;
+  reader.Next(&line);
+  reader.Next(&line);
+  const std::string name = SplitString(line, ",")[1];
+  EXPECT_EQ(ReadFile(dir.File("a/lidar0/data/" + name)),
+            ReadFile(dir.File("b/lidar0/data/" + name)));
+  options.seed = 2;
+  options.output_path = dir.File("c");
+  Simulate(options, rig);
+  EXPECT_NE(ReadFile(dir.File("a/imu0/data.csv")), ReadFile(dir.File("c/imu0/data.csv")));
+}
+
+// Real motion: the ground truth is the TUM trajectory, translated into the scene.
+TEST(Simulate, FollowsARealTumTrajectory) {
+  LISFM_REQUIRE_SHARED_DATA(
+      "hilti2022_groundtruth/exp_04_construction_upper_level_easy_2_2022-03-03-11-48-59_imu.txt");
+  const std::string tum = test::SharedData(
+      "hilti2022_groundtruth/exp_04_construction_upper_level_easy_2_2022-03-03-11-48-59_imu.txt");
+  test::TempDir dir;
+  SimulatorOptions options;
+  options.trajectory_path = tum;
+  options.scene = "hall";
+  options.duration = 20.0;
+  options.camera_rate = 0.0;
+  options.output_path = dir.File("real");
+  Simulate(options, TestRig());
+  const Trajectory input = ReadTum(tum);
+  const Trajectory gt = ReadTum(dir.File("real/groundtruth.txt"));
+  EXPECT_EQ(gt.start_ns(), input.start_ns());
+  const Vec3 offset = gt[0].pose.translation() - input[0].pose.translation();
+  // The spline fit (0.1 s knots, light smoothing) stays within 3 cm / 1 deg
+  // of 10 Hz handheld samples.
+  for (size_t i = 2; i < 190; ++i) {
+    const auto p = gt.Interpolate(input[i].t_ns);
+    ASSERT_TRUE(p.has_value());
+    const SE3 expected(input[i].pose.rotation(), input[i].pose.translation() + offset);
+    EXPECT_TRUE(test::PosesNear(*p, expected, M_PI / 180, 0.03)) << "sample " << i;
+  }
+}
+
+// Bad configuration through the real command: clear error, non-zero exit, no output.
+TEST(SimulateCommand, BadConfigurationFailsClearly) {
+  test::TempDir dir;
+  const std::string bin = test::LisfmBinary();
+  std::string out;
+  const std::string common = " --duration 2 --camera_rate 0 --output_path " + dir.File("o");
+  EXPECT_NE(test::RunCommand(bin + " simulate --scene moon" + common, &out), 0);
+  EXPECT_NE(out.find("moon"), std::string::npos) << out;
+  EXPECT_NE(test::RunCommand(bin + " simulate --camera_rate -1 --output_path " + dir.File("o"),
+                             &out), 0);
+  EXPECT_NE(out.find("camera_rate"), std::string::npos) << out;
+  // A rig YAML missing a required field.
+  test::WriteText(dir.File("rig.yaml"),
+                  "cam0:\n  distortion_model: equidistant\n  distortion_coeffs: [0, 0, 0, 0]\n"
+                  "  resolution: [720, 540]\n  T_cam_imu: [[1,0,0,0],[0,1,0,0],[0,0,1,0],"
+                  "[0,0,0,1]]\n");
+  EXPECT_NE(test::RunCommand(bin + " simulate --rig_path " + dir.File("rig.yaml") + common,
+                             &out), 0);
+  EXPECT_NE(out.find("intrinsics"), std::string::npos) << out;
+  // A trajectory file with unsorted times.
+  test::WriteText(dir.File("bad.txt"),
+                  "10.0 0 0 1 0 0 0 1\n10.2 0 0 1 0 0 0 1\n10.1 0 0 1 0 0 0 1\n");
+  EXPECT_NE(test::RunCommand(bin + " simulate --trajectory_path " + dir.File("bad.txt") +
+                                 " --scene hall" + common, &out), 0);
+  EXPECT_NE(out.find("line 3"), std::string::npos) << out;
+  EXPECT_FALSE(fs::exists(dir.File("o")));
+}
+
+}  // namespace
+}  // namespace sim
+}  // namespace lisfm
