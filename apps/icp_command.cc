@@ -83,7 +83,7 @@ int RunIcp(int argc, char** argv) {
                     "initial T_target_source: 4x4 matrix, 16 numbers row by row (default identity)");
   options.AddChoice("method", &method, {"point_to_plane", "bayesian"}, "registration method");
   options.AddString("output_path", &output_path,
-                    "folder for T_target_source.txt, covariance.txt and config.yaml (optional)");
+                    "folder for T_target_source.txt, covariance.txt, result.yaml and config.yaml (optional)");
   options.AddDouble("Icp.source_voxel_size", &source_voxel_m, "source voxel downsampling (m, 0 = off)");
   options.AddDouble("Icp.target_voxel_size", &target_voxel_m, "target voxel downsampling (m, 0 = off)");
   options.AddInt("Icp.normal_neighbors", &normal_options.num_neighbors, "k of the PCA normals");
@@ -148,10 +148,22 @@ int RunIcp(int argc, char** argv) {
                            "time_s: load {:.3f} preprocess {:.3f} registration {:.3f}\n",
                            result.converged, result.degenerate, result.iterations,
                            result.num_inliers, result.rmse_m, load_s, prep_s, reg_s);
+  // Not converged is a result, not an error: exit 0, but say so loudly.
+  if (!result.converged) {
+    std::cout << "WARNING: not converged: " << result.message << "\n";
+  }
+  std::cout.flush();
   if (!output_path.empty()) {
+    // Each file appears atomically (temporary name + rename).
     CreateDirs(output_path);
     WriteFileAtomically(output_path + "/T_target_source.txt", transform_text);
     WriteFileAtomically(output_path + "/covariance.txt", covariance_text);
+    WriteFileAtomically(
+        output_path + "/result.yaml",
+        fmt::format("method: {}\nconverged: {}\ndegenerate: {}\niterations: {}\ninliers: {}\n"
+                    "rmse_m: {:.9g}\ncovariance: \"{}\"\nmessage: \"{}\"\n",
+                    method, result.converged, result.degenerate, result.iterations,
+                    result.num_inliers, result.rmse_m, covariance_kind, result.message));
     options.WriteConfig(output_path + "/config.yaml");
   }
   LogInfo("icp ({}): {} source / {} target points after downsampling ({} / {} loaded), {} "
@@ -161,7 +173,7 @@ int RunIcp(int argc, char** argv) {
           result.num_inliers, result.rmse_m, result.iterations,
           result.converged ? "converged" : "NOT converged: ", result.converged ? "" : result.message,
           load_s, prep_s, reg_s,
-          output_path.empty() ? "" : "; wrote " + output_path + "/{T_target_source,covariance}.txt");
+          output_path.empty() ? "" : "; wrote " + output_path + "/{T_target_source,covariance}.txt, result.yaml");
   if (!result.converged) LogWarning("icp: {}", result.message);
   return 0;
 }

@@ -1,4 +1,6 @@
 // ICP on the real clouds of ../shared/data (skipped when missing).
+#include <algorithm>
+#include <cmath>
 #include <fstream>
 
 #include <gtest/gtest.h>
@@ -43,27 +45,86 @@ TEST(IcpRealData, RegistrationLidarPair) {
   EXPECT_TRUE(test::PosesNear(b.posterior.mean, reference, M_PI / 180.0, 0.05));
 }
 
-// Within 5 mm / 1 deg of PCL's reference result for bun0 -> bun4 (README).
-// DISABLED: open gap (issue 5). Point-to-plane lands 2.9 deg / 2.7 mm from PCL's
-// point-to-point reference (a different objective on a partial-overlap pair);
-// not yet resolved, so the test is kept at the issue's tolerance but disabled.
-TEST(IcpRealData, DISABLED_BunnyPair) {
-  LISFM_REQUIRE_SHARED_DATA("pointclouds_pcl/bun0.pcd");
-  const std::string dir = test::SharedData("pointclouds_pcl");
-  const PointSet source = FinitePointsOf(ReadPointCloud(dir + "/bun0.pcd"));
-  const KdTreeTarget target(FinitePointsOf(ReadPointCloud(dir + "/bun4.pcd")),
-                            NormalOptions{10, 0.05});
+SE3 BunnyReference() {
+  // pointclouds_pcl/README.md: PCL IterativeClosestPoint (point-to-POINT), source
+  // bun0, target bun4, max correspondence distance 0.05 m, 50 iterations, eps 1e-8;
+  // T_target_source (target <- source). Running exactly that with PCL 1.13 here
+  // reproduces it to 2.2e-4 element-wise (checked while fixing this test).
   Mat4 m;
   m << 0.8806, 0.036481, -0.4724, 0.03453, -0.02354, 0.9992, 0.03326, -0.001519, 0.4732,
       -0.01817, 0.8808, 0.04116, 0, 0, 0, 1;
-  const SE3 reference = FromMatrix(m);
+  return FromMatrix(m);
+}
+
+// RMS nearest-neighbour (point-to-point) distance of source points mapped by T,
+// over matches within 0.05 m (the README's gate).
+double PointToPointRms(const PointSet& source, const KdTree& target, const SE3& T) {
+  double sum = 0;
+  int count = 0;
+  for (const auto& p : source) {
+    const Eigen::Vector3f q = (T * p.cast<double>()).cast<float>();
+    uint32_t index = 0;
+    float sq = 0;
+    if (target.Nearest(q, &index, &sq) && sq < 0.05f * 0.05f) {
+      sum += sq;
+      ++count;
+    }
+  }
+  return std::sqrt(sum / std::max(count, 1));
+}
+
+// Why point-to-plane with 10-neighbour normals lands 2.9 deg / 2.7 mm from the
+// README's reference (as do PCL IterativeClosestPointWithNormals and Open3D
+// point-to-plane, see docs/BENCHMARKS_icp.md): the reference is the optimum of a
+// different objective. Measured (397 matches each): point-to-point RMS 6.35 mm at
+// the reference vs 6.71 mm at our result; point-to-plane RMS 4.05 mm at the
+// reference vs 3.53 mm at our result. Each transform is the better one for its
+// own objective; this partial-overlap pair is weakly constrained in rotation, so
+// the two optima differ by ~3 deg. The test asserts that ordering.
+TEST(IcpRealData, BunnyReferenceIsThePointToPointOptimum) {
+  LISFM_REQUIRE_SHARED_DATA("pointclouds_pcl/bun0.pcd");
+  const std::string dir = test::SharedData("pointclouds_pcl");
+  const PointSet source = FinitePointsOf(ReadPointCloud(dir + "/bun0.pcd"));
+  const PointSet target_points = FinitePointsOf(ReadPointCloud(dir + "/bun4.pcd"));
+  const KdTreeTarget target(target_points, NormalOptions{10, 0.05});
+  const SE3 reference = BunnyReference();
   IcpOptions options;
   options.max_correspondence_distance_m = 0.05;
-  options.kernel = "none";  // the 0.05 m gate is the only outlier rejection, as in PCL's run
+  options.kernel = "none";
   options.max_iterations = 200;
-  const IcpResult r = RegisterPointToPlane(source, target, SE3(), options);
-  EXPECT_TRUE(test::PosesNear(r.target_from_source, reference, M_PI / 180.0, 0.005))
-      << r.target_from_source.Matrix() << "\n" << r.message;
+  const IcpResult ours = RegisterPointToPlane(source, target, SE3(), options);
+  ASSERT_TRUE(ours.converged) << ours.message;
+  options.max_iterations = 1;  // statistics at the reference (one association)
+  const IcpResult at_reference = RegisterPointToPlane(source, target, reference, options);
+  EXPECT_LT(ours.rmse_m, at_reference.rmse_m);
+  EXPECT_LT(PointToPointRms(source, target.tree(), reference),
+            PointToPointRms(source, target.tree(), ours.target_from_source));
+}
+
+// Within 5 mm / 1 deg of PCL's reference result for bun0 -> bun4 (README), the
+// issue's tolerance. The clouds are sparse (361/397 points, ~4 mm apart, with
+// range noise): normals from 10 neighbours are noisy enough to tilt the
+// point-to-plane optimum by ~3 deg (test above). With normals from 20 or 30
+// neighbours (still a local patch: ~2 cm on a 15 cm bunny) both land within
+// 0.6 / 0.9 deg and 1.6 / 1.0 mm of the reference. Only the 0.05 m gate rejects
+// outliers, as in PCL's run.
+TEST(IcpRealData, BunnyPair) {
+  LISFM_REQUIRE_SHARED_DATA("pointclouds_pcl/bun0.pcd");
+  const std::string dir = test::SharedData("pointclouds_pcl");
+  const PointSet source = FinitePointsOf(ReadPointCloud(dir + "/bun0.pcd"));
+  const PointSet target_points = FinitePointsOf(ReadPointCloud(dir + "/bun4.pcd"));
+  const SE3 reference = BunnyReference();
+  for (const int k : {20, 30}) {
+    const KdTreeTarget target(target_points, NormalOptions{k, 0.05});
+    IcpOptions options;
+    options.max_correspondence_distance_m = 0.05;
+    options.kernel = "none";
+    options.max_iterations = 200;
+    const IcpResult r = RegisterPointToPlane(source, target, SE3(), options);
+    EXPECT_TRUE(r.converged) << "k=" << k << ": " << r.message;
+    EXPECT_TRUE(test::PosesNear(r.target_from_source, reference, M_PI / 180.0, 0.005))
+        << "k=" << k << "\n" << r.target_from_source.Matrix();
+  }
 }
 
 }  // namespace

@@ -7,8 +7,9 @@ LISFM="$LISFM_BUILD_DIR/apps/lisfm"
 
 # lisfm_build [extra cmake args...]: configures (Release) and builds everything.
 lisfm_build() {
+  mkdir -p "$LISFM_BUILD_DIR"
   cmake -S "$LISFM_ROOT" -B "$LISFM_BUILD_DIR" -DCMAKE_BUILD_TYPE=Release \
-    -DLISFM_WERROR="${LISFM_WERROR:-OFF}" "$@" >"$LISFM_BUILD_DIR.cmake.log" 2>&1 \
-    || { cat "$LISFM_BUILD_DIR.cmake.log"; echo "cmake configure failed" >&2; return 1; }
+    -DLISFM_WERROR="${LISFM_WERROR:-OFF}" "$@" >"$LISFM_BUILD_DIR/cmake.log" 2>&1 \
+    || { cat "$LISFM_BUILD_DIR/cmake.log"; echo "cmake configure failed" >&2; return 1; }
   cmake --build "$LISFM_BUILD_DIR" -j"$LISFM_JOBS"
 }

@@ -3,13 +3,14 @@
 # embedded default data, then prints a summary.
 #   scripts/demo.sh [OUTPUT_DIR]     (default: ./demo_output)
 #
-# Today the main job is trajectory evaluation on real HILTI 2022 data:
-#   1. the real FAST-LIO2 trajectory of exp04 (../shared/data/hilti_exp4_small)
-#      against the dense exp04 ground truth (ATE/RPE after SE(3) alignment);
-#   2. the same FAST-LIO2 trajectory scored like the HILTI 2022 challenge against
-#      the surveyed control points;
-#   3. the dense ground truth itself against the control points (the ceiling).
-# Later stages (simulate -> lio -> pose_slam -> SfM) are added here as they land.
+# Steps (later stages of the pipeline join as they land):
+#   1. lisfm simulate: a 30 s HILTI-style office recording (IMU, XT-32-like LiDAR,
+#      the real HILTI 2022 5-camera rig at 0.5 Hz) with exact ground truth;
+#   2. lisfm lio: LiDAR-inertial odometry on it;
+#   3. lisfm evaluate: ATE/RPE of the lio trajectory and its HILTI-style score;
+#   4. real data: the published FAST-LIO2 trajectory of HILTI 2022 exp04
+#      (../shared/data/hilti_exp4_small) against the dense exp04 ground truth and
+#      the surveyed control points.
 set -euo pipefail
 source "$(dirname "${BASH_SOURCE[0]}")/common.sh"
 OUT="${1:-$PWD/demo_output}"
@@ -17,29 +18,38 @@ OUT="${1:-$PWD/demo_output}"
 "$LISFM_ROOT/scripts/install_deps.sh"
 mkdir -p "$LISFM_BUILD_DIR"
 lisfm_build
+mkdir -p "$OUT"
+
+echo "== 1/4 simulate a 30 s office recording =="
+"$LISFM" simulate --scene office --duration 30 --camera_rate 0.5 --seed 1 \
+  --output_path "$OUT/sequence" --overwrite 1
+echo "== 2/4 LiDAR-inertial odometry =="
+"$LISFM" lio --input_path "$OUT/sequence" --output_path "$OUT/lio"
+echo "== 3/4 evaluate the odometry against the simulator's ground truth =="
+"$LISFM" evaluate --reference "$OUT/sequence/groundtruth.txt" --estimate "$OUT/lio/trajectory.txt" \
+  --max_dt 0.006 --output_path "$OUT/lio_eval"
+"$LISFM" evaluate --reference "$OUT/sequence/controlpoints.txt" --reference_type control_points \
+  --estimate "$OUT/lio/trajectory.txt" --output_path "$OUT/lio_score"
 
 GT_DIR="$LISFM_SHARED_DATA/hilti2022_groundtruth"
 LIO="$LISFM_SHARED_DATA/hilti_exp4_small/lidar/fastlio2_odom.txt"
-if [ ! -d "$GT_DIR" ] || [ ! -f "$LIO" ]; then
-  echo "demo.sh: $LISFM_SHARED_DATA (hilti2022_groundtruth, hilti_exp4_small) is missing" >&2
-  exit 1
+if [ -d "$GT_DIR" ] && [ -f "$LIO" ]; then
+  echo "== 4/4 real data: FAST-LIO2 on HILTI 2022 exp04 vs ground truth =="
+  DENSE="$GT_DIR/exp_04_construction_upper_level_easy_2_2022-03-03-11-48-59_imu.txt"
+  "$LISFM" evaluate --reference "$DENSE" --estimate "$LIO" --max_dt 0.05 \
+    --output_path "$OUT/fastlio2_exp04_eval"
+  "$LISFM" evaluate --reference "$GT_DIR/exp04_construction_upper_level.txt" \
+    --reference_type control_points --estimate "$LIO" --output_path "$OUT/fastlio2_exp04_score"
+else
+  echo "== 4/4 skipped: $LISFM_SHARED_DATA is missing =="
 fi
-DENSE="$GT_DIR/exp_04_construction_upper_level_easy_2_2022-03-03-11-48-59_imu.txt"
-CONTROL="$GT_DIR/exp04_construction_upper_level.txt"
-mkdir -p "$OUT"
 
-echo "== 1/3 FAST-LIO2 (real, exp04) vs dense ground truth =="
-"$LISFM" evaluate --reference "$DENSE" --estimate "$LIO" --align se3 --max_dt 0.05 \
-  --output_path "$OUT/fastlio2_vs_gt"
-echo "== 2/3 FAST-LIO2 (real, exp04) HILTI 2022 score against the control points =="
-"$LISFM" evaluate --reference "$CONTROL" --reference_type control_points --estimate "$LIO" \
-  --output_path "$OUT/fastlio2_hilti_score"
-echo "== 3/3 dense ground truth HILTI 2022 score against the control points =="
-"$LISFM" evaluate --reference "$CONTROL" --reference_type control_points --estimate "$DENSE" \
-  --output_path "$OUT/gt_hilti_score"
-
+ate() { /usr/bin/python3 -c "import json,sys; m=json.load(open(sys.argv[1])); print(round(m['ate']['translation_m']['rmse'],4))" "$1" 2>/dev/null || echo "?"; }
+score() { /usr/bin/python3 -c "import json,sys; m=json.load(open(sys.argv[1])); print(round(m['hilti2022']['score'],2))" "$1" 2>/dev/null || echo "?"; }
 echo
-echo "demo summary: outputs in $OUT"
-for d in fastlio2_vs_gt fastlio2_hilti_score gt_hilti_score; do
-  echo "  $d: $(ls "$OUT/$d" | tr '\n' ' ')"
-done
+echo "demo summary (outputs in $OUT):"
+echo "  simulated sequence:        $OUT/sequence ($(ls "$OUT/sequence/lidar0/data" | wc -l) LiDAR scans, $(cat "$OUT"/sequence/cam*/data.csv 2>/dev/null | grep -vc '^#') images)"
+echo "  lio on it:                 ATE rmse $(ate "$OUT/lio_eval/metrics.json") m, HILTI-style score $(score "$OUT/lio_score/metrics.json")/100"
+if [ -d "$OUT/fastlio2_exp04_eval" ]; then
+  echo "  FAST-LIO2 on real exp04:   ATE rmse $(ate "$OUT/fastlio2_exp04_eval/metrics.json") m, HILTI score $(score "$OUT/fastlio2_exp04_score/metrics.json")/100"
+fi
