@@ -11,7 +11,7 @@ namespace lisfm {
 namespace {
 
 struct VoxelKey {
-  int64_t x, y, z;
+  int64_t x = 0, y = 0, z = 0;
   bool operator==(const VoxelKey& o) const { return x == o.x && y == o.y && z == o.z; }
 };
 
@@ -32,6 +32,7 @@ int64_t VoxelIndex(double coordinate, double inv_voxel_size) {
 }
 
 struct Voxel {
+  VoxelKey key{0, 0, 0};
   Vec3 centroid = Vec3::Zero();  // sum of the member points, then their mean
   int64_t count = 0;
   size_t best = 0;  // index of the member nearest to the centroid
@@ -58,20 +59,45 @@ PointCloud VoxelDownsample(const PointCloud& cloud, double voxel_size) {
   // appearance) and accumulate the voxel sums.
   std::vector<uint32_t> voxel_of_point(cloud.size(), kDropped);
   std::vector<Voxel> voxels;
-  std::unordered_map<VoxelKey, uint32_t, VoxelKeyHash> voxel_ids;
-  voxel_ids.reserve(cloud.size());
+  // Open-addressing table (linear probing, power-of-two size, load <= 1/2)
+  // from voxel key to dense id: much faster than std::unordered_map here,
+  // since this runs on every 64k-point scan.
+  std::vector<VoxelKey> slot_keys;
+  std::vector<uint32_t> slot_ids;
+  size_t mask = 0;
+  auto rehash = [&](size_t capacity) {
+    slot_keys.assign(capacity, VoxelKey{});
+    slot_ids.assign(capacity, kDropped);
+    mask = capacity - 1;
+    for (uint32_t id = 0; id < voxels.size(); ++id) {
+      size_t h = VoxelKeyHash()(voxels[id].key) & mask;
+      while (slot_ids[h] != kDropped) h = (h + 1) & mask;
+      slot_keys[h] = voxels[id].key;
+      slot_ids[h] = id;
+    }
+  };
+  rehash(1024);
   for (size_t i = 0; i < cloud.size(); ++i) {
     const LidarPoint& p = cloud.points[i];
     if (!IsFinite(p)) continue;
     const VoxelKey key{VoxelIndex(p.x, inv_voxel_size),
                        VoxelIndex(p.y, inv_voxel_size),
                        VoxelIndex(p.z, inv_voxel_size)};
-    const auto [it, inserted] = voxel_ids.try_emplace(key, static_cast<uint32_t>(voxels.size()));
-    if (inserted) voxels.emplace_back();
-    Voxel& voxel = voxels[it->second];
+    size_t h = VoxelKeyHash()(key) & mask;
+    while (slot_ids[h] != kDropped && !(slot_keys[h] == key)) h = (h + 1) & mask;
+    uint32_t id = slot_ids[h];
+    if (id == kDropped) {
+      id = static_cast<uint32_t>(voxels.size());
+      voxels.emplace_back();
+      voxels.back().key = key;
+      slot_keys[h] = key;
+      slot_ids[h] = id;
+      if (2 * voxels.size() > slot_ids.size()) rehash(2 * slot_ids.size());
+    }
+    Voxel& voxel = voxels[id];
     voxel.centroid += p.xyzd();
     ++voxel.count;
-    voxel_of_point[i] = it->second;
+    voxel_of_point[i] = id;
   }
 
   for (Voxel& voxel : voxels) voxel.centroid /= static_cast<double>(voxel.count);

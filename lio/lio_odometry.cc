@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <limits>
 
 #include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
@@ -26,16 +27,23 @@ constexpr int64_t kMaxImuGapNs = 100000000;  // 0.1 s
 // A plane n·x + d = 0 with |n| = 1 fitted to k points by least squares on
 // A n' = -1 (FAST-LIO2's esti_plane), then checked against max_residual.
 bool FitPlane(const std::vector<Eigen::Vector3f>& pts, double max_residual, Vec4* plane) {
-  const int k = static_cast<int>(pts.size());
-  Eigen::MatrixX3d A(k, 3);
-  for (int i = 0; i < k; ++i) A.row(i) = pts[i].cast<double>().transpose();
-  const Vec3 n = A.colPivHouseholderQr().solve(-Eigen::VectorXd::Ones(k));
+  // Normal equations of A n' = -1 (3x3, fixed size: no allocation per point).
+  Mat3 AtA = Mat3::Zero();
+  Vec3 Atb = Vec3::Zero();
+  for (const auto& p : pts) {
+    const Vec3 q = p.cast<double>();
+    AtA.noalias() += q * q.transpose();
+    Atb -= q;
+  }
+  const Eigen::LDLT<Mat3> ldlt(AtA);
+  if (ldlt.info() != Eigen::Success) return false;
+  const Vec3 n = ldlt.solve(Atb);
   const double norm = n.norm();
   if (!(norm > 1e-9) || !std::isfinite(norm)) return false;
   const Vec3 unit = n / norm;
   const double d = 1.0 / norm;
-  for (int i = 0; i < k; ++i) {
-    if (std::abs(unit.dot(A.row(i).transpose()) + d) > max_residual) return false;
+  for (const auto& p : pts) {
+    if (std::abs(unit.dot(p.cast<double>()) + d) > max_residual) return false;
   }
   *plane << unit, d;
   return true;
@@ -218,6 +226,13 @@ bool LioOdometry::PropagateTo(TimestampNs t_ns, std::vector<PoseSample>* history
   return true;
 }
 
+std::optional<SE3> LioOdometry::Predict(TimestampNs t_ns) {
+  if (!initialized_ || t_ns < state_t_ns_) return std::nullopt;
+  std::vector<PoseSample> history;
+  if (!PropagateTo(t_ns, &history)) return std::nullopt;
+  return SE3(R_, p_);
+}
+
 std::vector<Keyframe> LioOdometry::TakeKeyframes() {
   std::vector<Keyframe> out;
   out.swap(keyframes_);
@@ -265,9 +280,10 @@ LioFrameResult LioOdometry::ProcessFrame(const std::vector<LidarScanInput>& scan
   bool gap = false;
   {
     TimestampNs prev = last_imu_.t_ns;
+    // Up to and including the first sample after t_end (it bounds the last segment).
     for (const auto& s : imu_buffer_) {
-      if (s.t_ns > t_end) break;
       if (s.t_ns - prev > kMaxImuGapNs) gap = true;
+      if (s.t_ns > t_end) break;
       prev = s.t_ns;
     }
   }
@@ -285,50 +301,81 @@ LioFrameResult LioOdometry::ProcessFrame(const std::vector<LidarScanInput>& scan
     return result;
   }
 
-  // 2. De-skew every point to the frame end, in the IMU frame.
-  PointCloud deskewed;
-  deskewed.stamp_ns = t_end;
-  for (const auto& s : scans) {
+  // 2. De-skew to the frame end, in the IMU frame. The pose at a point's time
+  // is the propagated pose of its IMU segment moved forward by that segment's
+  // rates (FAST-LIO2's backward propagation). Points sharing a time stamp (a
+  // spinning LiDAR fires its rings together) share one transform.
+  struct SegmentLookup {
+    const std::vector<PoseSample>& history;
+    const SE3& imu_end_from_world;
+    // imu_end_from_lidar at absolute time t for extrinsic T_il.
+    Eigen::Matrix<double, 3, 4> At(TimestampNs t, const SE3& T_il) const {
+      auto it = std::upper_bound(history.begin(), history.end(), t,
+                                 [](TimestampNs v, const PoseSample& ps) { return v < ps.t_ns; });
+      const PoseSample& seg = (it == history.begin()) ? history.front() : *(it - 1);
+      const double dt = NsToSeconds(t - seg.t_ns);
+      const SE3 world_from_imu_t(seg.R * so3::Exp(seg.omega * dt),
+                                 seg.p + seg.v * dt + 0.5 * seg.acc_world * dt * dt);
+      return (imu_end_from_world * world_from_imu_t * T_il).Matrix3x4();
+    }
+  };
+  const SegmentLookup lookup{history, imu_end_from_world};
+  const double min_r2 = options_.min_range * options_.min_range;
+  const double max_r2 = options_.max_range * options_.max_range;
+  // De-skews `in` (sensor frame) into `out` (appended), dropping out-of-range points.
+  auto deskew = [&](const LidarScanInput& s, const std::vector<LidarPoint>& in, PointCloud* out) {
     const SE3& T_il = imu_from_lidar_[s.sensor_id];
     const TimestampNs offset = SecondsToNs(lidar_time_offsets_s_[s.sensor_id]);
-    const size_t base = deskewed.points.size();
-    deskewed.points.resize(base + s.cloud->size());
-    const double min_r2 = options_.min_range * options_.min_range;
-    const double max_r2 = options_.max_range * options_.max_range;
-    tbb::parallel_for(tbb::blocked_range<size_t>(0, s.cloud->size(), 4096),
+    const size_t base = out->points.size();
+    out->points.resize(base + in.size());
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, in.size(), 2048),
                       [&](const tbb::blocked_range<size_t>& r) {
+      float cached_t = std::numeric_limits<float>::quiet_NaN();
+      Eigen::Matrix<double, 3, 4> A = Eigen::Matrix<double, 3, 4>::Zero();
       for (size_t i = r.begin(); i < r.end(); ++i) {
-        const LidarPoint& in = s.cloud->points[i];
-        LidarPoint& out = deskewed.points[base + i];
-        out = in;
-        const Vec3 x_l = in.xyzd();
+        const LidarPoint& p_in = in[i];
+        LidarPoint& p_out = out->points[base + i];
+        p_out = p_in;
+        const Vec3 x_l = p_in.xyzd();
         const double r2 = x_l.squaredNorm();
         if (!x_l.allFinite() || r2 < min_r2 || r2 > max_r2) {
-          out.x = out.y = out.z = std::numeric_limits<float>::quiet_NaN();
+          p_out.x = p_out.y = p_out.z = std::numeric_limits<float>::quiet_NaN();
           continue;
         }
-        const TimestampNs t = s.cloud->stamp_ns + offset + SecondsToNs(in.t);
-        // Segment with history[j].t <= t (or the first, extrapolating back).
-        auto it = std::upper_bound(history.begin(), history.end(), t,
-                                   [](TimestampNs v, const PoseSample& ps) { return v < ps.t_ns; });
-        const PoseSample& seg = (it == history.begin()) ? history.front() : *(it - 1);
-        const double dt = NsToSeconds(t - seg.t_ns);
-        const Quat R = seg.R * so3::Exp(seg.omega * dt);
-        const Vec3 p = seg.p + seg.v * dt + 0.5 * seg.acc_world * dt * dt;
-        const Vec3 x_w = R * (T_il * x_l) + p;
-        const Vec3 x_end = imu_end_from_world * x_w;
-        out.x = static_cast<float>(x_end.x());
-        out.y = static_cast<float>(x_end.y());
-        out.z = static_cast<float>(x_end.z());
-        out.t = static_cast<float>(NsToSeconds(t - t_end));
-        out.sensor_id = static_cast<uint8_t>(s.sensor_id);
+        const TimestampNs t = s.cloud->stamp_ns + offset + SecondsToNs(p_in.t);
+        if (!(p_in.t == cached_t)) {
+          A = lookup.At(t, T_il);
+          cached_t = p_in.t;
+        }
+        const Vec3 x_end = A.leftCols<3>() * x_l + A.col(3);
+        p_out.x = static_cast<float>(x_end.x());
+        p_out.y = static_cast<float>(x_end.y());
+        p_out.z = static_cast<float>(x_end.z());
+        p_out.t = static_cast<float>(NsToSeconds(t - t_end));
+        p_out.sensor_id = static_cast<uint8_t>(s.sensor_id);
       }
     });
+  };
+  // Down-sample in the sensor frame first (the distortion within one voxel is
+  // a few cm at walking speed), so only the kept points need de-skewing.
+  PointCloud down;
+  down.stamp_ns = t_end;
+  for (const auto& s : scans) {
+    const PointCloud kept = VoxelDownsample(*s.cloud, options_.scan_voxel_size);
+    deskew(s, kept.points, &down);
   }
-  const PointCloud down = VoxelDownsample(deskewed, options_.scan_voxel_size);
+  RemoveNonFinite(&down);
   result.num_downsampled = static_cast<int>(down.size());
   std::vector<Eigen::Vector3f> body(down.size());
   for (size_t i = 0; i < down.size(); ++i) body[i] = down.points[i].xyz();
+  // The full de-skewed cloud, computed only when a keyframe needs it.
+  auto full_deskewed = [&]() {
+    PointCloud full;
+    full.stamp_ns = t_end;
+    for (const auto& s : scans) deskew(s, s.cloud->points, &full);
+    RemoveNonFinite(&full);
+    return full;
+  };
 
   auto insert_into_map = [&](const SE3& pose) {
     std::vector<Eigen::Vector3f> world(body.size());
@@ -351,8 +398,9 @@ LioFrameResult LioOdometry::ProcessFrame(const std::vector<LidarScanInput>& scan
       Keyframe k;
       k.t_ns = t_end;
       k.world_from_imu = pose;
-      k.cloud_in_imu = deskewed;
-      RemoveNonFinite(&k.cloud_in_imu);
+      // De-skewed with the predicted motion inside the scan; the update moves the
+      // end pose, which the keyframe stores separately.
+      k.cloud_in_imu = full_deskewed();
       keyframes_.push_back(std::move(k));
       last_keyframe_pose_ = pose;
       have_keyframe_ = true;

@@ -21,6 +21,7 @@
 
 #include <deque>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -100,6 +101,11 @@ class LioOdometry {
   // IMU samples must arrive in strictly increasing time; throws InputError otherwise.
   void AddImu(const ImuSample& sample);
   TimestampNs LatestImuTime() const;
+
+  // IMU-only prediction: propagates the state (mean and covariance) to t_ns
+  // without a LiDAR update and returns world_from_imu; nullopt before the
+  // initialisation or when the IMU does not cover t_ns yet.
+  std::optional<SE3> Predict(TimestampNs t_ns);
 
   // Processes one frame. Every point's absolute time must be covered by IMU
   // data already added (otherwise the frame is skipped with a message).

@@ -90,7 +90,19 @@ int VoxelMap::KnnSearch(const Point& query,
   int found = 0;
   const float max_sq = static_cast<float>(max_distance * max_distance);
   const Key c = KeyOf(query);
+  // Query position inside its voxel, for the distance to neighbouring voxels.
+  const float vs = static_cast<float>(options_.voxel_size);
+  const Eigen::Vector3f local = query - Eigen::Vector3f(c.x * vs, c.y * vs, c.z * vs);
   for (const Key& o : nearby_offsets_) {
+    // Squared distance from the query to the neighbour voxel's box: skip the
+    // voxel when it cannot hold anything closer than what was found.
+    float box_d2 = 0;
+    const int off[3] = {o.x, o.y, o.z};
+    for (int a = 0; a < 3; ++a) {
+      const float d = off[a] < 0 ? local[a] : (off[a] > 0 ? vs - local[a] : 0.0f);
+      box_d2 += d * d;
+    }
+    if (box_d2 > max_sq || (found == k && box_d2 >= best_d[k - 1])) continue;
     const auto it = grid_.find({c.x + o.x, c.y + o.y, c.z + o.z});
     if (it == grid_.end()) continue;
     for (const Point& p : it->second.points) {
