@@ -5,6 +5,7 @@
 #include <fstream>
 #include <sstream>
 #include <map>
+#include <memory>
 #include <numeric>
 
 #include <fmt/format.h>
@@ -18,6 +19,7 @@
 #include "core/options.h"
 #include "core/progress.h"
 #include "importers/sequence.h"
+#include "lio/lidar_only_odometry.h"
 #include "lio/lio_odometry.h"
 
 namespace lisfm {
@@ -54,7 +56,7 @@ double Percentile(std::vector<double> v, double q) {
 }  // namespace
 
 int RunLio(int argc, char** argv) {
-  std::string input_path, output_path, lidars = "all";
+  std::string input_path, output_path, lidars = "all", method = "iekf";
   int max_scans = 0;
   bool write_keyframes = true;
   double map_voxel = 0.2;
@@ -65,6 +67,9 @@ int RunLio(int argc, char** argv) {
   options.AddRequiredString("input_path", &input_path, "sequence folder (rig.yaml, imu0/, lidarK/)");
   options.AddRequiredString("output_path", &output_path, "output folder");
   options.AddString("lidars", &lidars, "LiDARs to use: all, or a list like 0 / 1 / 0,1");
+  options.AddChoice("method", &method, {"iekf", "lidar_only"},
+                    "iekf: LiDAR-inertial filter; lidar_only: frame-to-map ICP baseline without "
+                    "the IMU (first LiDAR only)");
   options.AddInt("max_scans", &max_scans, "stop after this many frames (0 = all)");
   options.AddBool("write_keyframes", &write_keyframes, "write keyframe clouds (PCD)");
   options.AddDouble("map_voxel_size", &map_voxel, "m, voxel size of the written map.pcd");
@@ -107,6 +112,11 @@ int RunLio(int argc, char** argv) {
   }
   LioOdometry odom(lio, seq.rig.imu, extrinsics, offsets);
   const int primary = used.front();
+  std::unique_ptr<LidarOnlyOdometry> lidar_only;
+  if (method == "lidar_only") {
+    lidar_only = std::make_unique<LidarOnlyOdometry>(lio, extrinsics[primary], offsets[primary]);
+    if (used.size() > 1) LogWarning("lio: --method lidar_only uses {} only", seq.rig.lidars[primary].name);
+  }
   const auto& primary_scans = seq.lidar_scans[primary];
   if (primary_scans.empty()) throw InputError(input_path, seq.rig.lidars[primary].name, "no scans");
   LogInfo("lio: {} IMU samples, {} frames from {}{}", seq.imu.size(), primary_scans.size(),
@@ -142,7 +152,7 @@ int RunLio(int argc, char** argv) {
     sensor_ids.push_back(primary);
     // Secondary LiDARs: scans that start before this primary scan starts
     // (and after the previous one) join this frame.
-    for (size_t u = 1; u < used.size(); ++u) {
+    for (size_t u = 1; u < used.size() && !lidar_only; ++u) {
       const int k = used[u];
       auto& idx = next_scan[k];
       while (idx < seq.lidar_scans[k].size() && seq.lidar_scans[k][idx].t_ns <= primary_scans[f].t_ns) {
@@ -169,7 +179,8 @@ int RunLio(int argc, char** argv) {
     }
     std::vector<LidarScanInput> inputs;
     for (size_t c = 0; c < clouds.size(); ++c) inputs.push_back({sensor_ids[c], &clouds[c]});
-    const LioFrameResult r = odom.ProcessFrame(inputs);
+    const LioFrameResult r =
+        lidar_only ? lidar_only->ProcessScan(clouds.front()) : odom.ProcessFrame(inputs);
     if (r.processed) {
       ++processed;
       times_ms.push_back(r.time_ms);
@@ -218,7 +229,7 @@ int RunLio(int argc, char** argv) {
     }
   }
   PointCloud map_cloud;
-  for (const auto& p : odom.map().AllPoints()) {
+  for (const auto& p : (lidar_only ? lidar_only->map() : odom.map()).AllPoints()) {
     LidarPoint lp;
     lp.x = p.x();
     lp.y = p.y();
