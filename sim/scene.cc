@@ -27,7 +27,9 @@ void SceneOptions::Check(const std::string& where) const {
                      "expected office, staircase or hall, found '" + type + "'");
   }
   require(length >= 10.0 && length <= 1000.0, "length", "10..1000 m", length);
-  require(width >= 6.0 && width <= 1000.0, "width", "6..1000 m", width);
+  // The staircase is a narrow shaft (two 1.3 m flights); rooms need 6 m.
+  require(width >= (type == "staircase" ? 2.0 : 6.0) && width <= 1000.0, "width",
+          type == "staircase" ? "2..1000 m" : "6..1000 m", width);
   require(height >= 2.2 && height <= 20.0, "height", "2.2..20 m", height);
   require(corridor_width >= 1.5 && corridor_width <= 10.0, "corridor_width", "1.5..10 m",
           corridor_width);
