@@ -62,7 +62,8 @@ bool SgldOptions::Check() const {
 }
 
 bool BayesianIcpOptions::Check() const {
-  return icp.Check() && sgld.Check() && noise_sigma_m >= 0;
+  return icp.Check() && sgld.Check() && noise_sigma_m >= 0 && noise_sigma_scale > 0 &&
+         correlation_length_m >= 0;
 }
 
 SgldResult SampleSgld(const SgldModel& model,
@@ -191,7 +192,15 @@ BayesianIcpResult RegisterBayesian(const PointSet& source,
   BayesianIcpResult result;
   result.icp = RegisterPointToPlane(source, target, initial, options.icp, source_normals);
   double sigma = options.noise_sigma_m;
-  if (sigma <= 0) sigma = std::sqrt(result.icp.residual_variance_m2);
+  if (options.correlation_length_m > 0) {
+    const size_t cells = VoxelDownsamplePoints(source, options.correlation_length_m).size();
+    result.points_per_cell =
+        std::max(1.0, static_cast<double>(source.size()) / static_cast<double>(std::max<size_t>(cells, 1)));
+  }
+  if (sigma <= 0) {
+    sigma = options.noise_sigma_scale * std::sqrt(result.icp.residual_variance_m2 *
+                                                  result.points_per_cell);
+  }
   // A perfect fit (synthetic data) has zero residuals: floor sigma at 1 um.
   result.noise_sigma_m = std::max(sigma, 1e-6);
   const PointToPlaneModel model(source, source_normals, target, options.icp);

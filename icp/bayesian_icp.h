@@ -82,7 +82,23 @@ SgldResult SampleSgld(const SgldModel& model,
 struct BayesianIcpOptions {
   IcpOptions icp;            // association, kernel and the initial ICP
   SgldOptions sgld;
-  double noise_sigma_m = 0;  // likelihood sigma (m); 0: sqrt of the ICP residual variance
+  // Likelihood sigma (m). 0 (default): derived from the ICP residuals as
+  //   sigma = noise_sigma_scale * sqrt(residual variance) * sqrt(points per cell),
+  // where "points per cell" = source points / occupied cells of edge
+  // correlation_length_m (1 when correlation_length_m = 0). Point-to-plane
+  // residuals of real scans are not independent: neighbouring residuals share
+  // target normals, voxel centroids and the different sampling of the same
+  // surface in the two scans, so the error of the estimate does not shrink with
+  // the point count the way N independent residuals would make it. Model A
+  // inflates sigma by a constant; model B (correlation_length_m > 0) counts one
+  // independent error per occupied cell (tempered likelihood, power N_eff / N).
+  // The scale was calibrated on simulated office scan pairs only and checked on
+  // held-out hall and staircase pairs (scripts/bench_icp_covariance.sh,
+  // docs/BENCHMARKS_icp.md). Default (model A): scale 3.15, no cells. Use scale 1 and
+  // no cells for residuals that really are independent (synthetic i.i.d. noise).
+  double noise_sigma_m = 0;
+  double noise_sigma_scale = 3.15;
+  double correlation_length_m = 0.0;
   bool Check() const;
 };
 
@@ -90,6 +106,7 @@ struct BayesianIcpResult {
   IcpResult icp;          // the point estimate the chain starts from
   SgldResult posterior;   // mean, covariance (6x6, right perturbation), samples
   double noise_sigma_m = 0;  // sigma used in the likelihood
+  double points_per_cell = 1;  // source points / occupied correlation cells (1 when off)
 };
 
 // Runs RegisterPointToPlane from `initial`, then SGLD around its result with

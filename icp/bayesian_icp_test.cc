@@ -90,6 +90,7 @@ TEST(RegisterBayesian, CorridorAxisIsUncertain) {
   const PointSet source = test::SampleCorridor(10.0, 3000, 0.005, test::Rng());
   const KdTreeTarget model(target, NormalOptions());
   BayesianIcpOptions options;
+  options.noise_sigma_scale = 1.0;  // i.i.d. synthetic noise: the uninflated likelihood
   options.sgld.num_iterations = 2000;
   const BayesianIcpResult r = RegisterBayesian(source, model, SE3(), options);
   EXPECT_TRUE(r.icp.degenerate);
@@ -110,6 +111,7 @@ TEST(RegisterBayesian, RoomPosteriorIsConsistent) {
       test::Transformed(test::SampleBoxRoom(room, 3000, 0.005, test::Rng()), truth.Inverse());
   const KdTreeTarget model(target, NormalOptions());
   BayesianIcpOptions options;
+  options.noise_sigma_scale = 1.0;  // i.i.d. synthetic noise: the uninflated likelihood
   options.sgld.keep_samples = true;
   const BayesianIcpResult r = RegisterBayesian(source, model, SE3(), options);
   ASSERT_TRUE(r.icp.converged) << r.icp.message;

@@ -28,17 +28,22 @@ struct Accumulator {
   double point_sq = 0;  // sum |p|^2
   size_t count = 0;
 
+  // full: also the statistics needed only at the returned estimate (Censi
+  // "meat", point spread); the Gauss-Newton iterations need only H, g, counts.
+  template <bool full>
   void Add(const internal::LinearizedTerm& t, const Eigen::Vector3f& p) {
     const double wr = t.weight * t.residual;
     hessian.selfadjointView<Eigen::Upper>().rankUpdate(t.jacobian.transpose(), t.weight);
-    gradient_outer.selfadjointView<Eigen::Upper>().rankUpdate(t.jacobian.transpose(), wr * wr);
     gradient += t.jacobian.transpose() * wr;
     weighted_sq += wr * t.residual;
     sq += t.residual * t.residual;
-    const Eigen::Vector3d pd = p.cast<double>();
-    point_sum += pd;
-    point_sq += pd.squaredNorm();
     ++count;
+    if (full) {
+      gradient_outer.selfadjointView<Eigen::Upper>().rankUpdate(t.jacobian.transpose(), wr * wr);
+      const Eigen::Vector3d pd = p.cast<double>();
+      point_sum += pd;
+      point_sq += pd.squaredNorm();
+    }
   }
   void Join(const Accumulator& o) {
     hessian += o.hessian;
@@ -52,6 +57,7 @@ struct Accumulator {
   }
 };
 
+template <bool full>
 Accumulator Linearize(const PointSet& source,
                       const std::vector<Eigen::Vector3f>& source_normals,
                       const IcpTarget& target,
@@ -68,7 +74,7 @@ Accumulator Linearize(const PointSet& source,
           const size_t i = k * stride;
           const Eigen::Vector3f n = with_normals ? source_normals[i] : Eigen::Vector3f::Zero();
           if (internal::LinearizePoint(target, ctx, source[i], n, &term)) {
-            acc.Add(term, source[i]);
+            acc.template Add<full>(term, source[i]);
           }
         }
         return acc;
@@ -233,8 +239,7 @@ bool KdTreeTarget::Match(const Eigen::Vector3f& point,
                          Eigen::Vector3f* target_normal) const {
   uint32_t index = 0;
   float sq_dist = 0;
-  if (!tree_.Nearest(point, &index, &sq_dist)) return false;
-  if (sq_dist > max_distance_m * max_distance_m) return false;
+  if (!tree_.NearestWithin(point, max_distance_m * max_distance_m, &index, &sq_dist)) return false;
   Eigen::Vector3f n;
   float planarity = 0.f;
   NormalAt(index, &n, &planarity);
@@ -372,17 +377,31 @@ IcpResult RegisterPointToPlane(const PointSet& source,
   Accumulator acc;
   bool small_step = false;
   // Coarse-to-fine: while far from the optimum, every coarse_stride-th source
-  // point is enough to point the step the right way; the full set is used once a
-  // step falls below 10x the convergence thresholds (or when the subset has too
-  // few matches), and only full-set steps can end the iteration.
-  size_t stride = static_cast<size_t>(options.coarse_stride);
-  if (source.size() / stride < static_cast<size_t>(100 * options.min_inliers)) stride = 1;
+  // point is enough to point the step the right way; the next finer level is used
+  // once a step falls below 10x the convergence thresholds (the full set at once
+  // when a subset has too few matches), and only full-set steps can end the
+  // iteration.
+  // Levels: every 2k-th, then every k-th point (k = coarse_stride), each only if
+  // the subset keeps >= 100 min_inliers points; then all points.
+  std::vector<size_t> strides;
+  const size_t k = static_cast<size_t>(options.coarse_stride);
+  for (const size_t s : {2 * k, k}) {
+    if (k > 1 && source.size() / s >= static_cast<size_t>(100 * options.min_inliers)) {
+      strides.push_back(s);
+    }
+  }
+  strides.push_back(1);
+  size_t level = 0;
+  size_t stride = strides[0];
+  SE3 last_linearized = initial;
   for (int iteration = 0; iteration < options.max_iterations; ++iteration) {
     const internal::LinearizationContext ctx(result.target_from_source, options);
-    acc = Linearize(source, source_normals, target, ctx, stride);
+    last_linearized = result.target_from_source;
+    acc = Linearize<false>(source, source_normals, target, ctx, stride);
     result.iterations = iteration + 1;
     if (acc.count < static_cast<size_t>(options.min_inliers)) {
       if (stride > 1) {
+        level = strides.size() - 1;
         stride = 1;
         continue;
       }
@@ -400,7 +419,7 @@ IcpResult RegisterPointToPlane(const PointSet& source,
     if (stride > 1) {
       if (rotation_step < 10 * options.convergence_rotation_rad &&
           translation_step < 10 * options.convergence_translation_m) {
-        stride = 1;
+        stride = strides[++level];
       }
       continue;
     }
@@ -411,8 +430,12 @@ IcpResult RegisterPointToPlane(const PointSet& source,
     }
   }
   // Statistics and the Hessian at the returned estimate (one more association).
-  if (small_step || stride > 1) acc = Linearize(source, source_normals, target,
-                                  internal::LinearizationContext(result.target_from_source, options));
+  // (After a loop that ended without a small step at full resolution: the
+  // statistics of its last linearisation, recomputed with the full sums.)
+  acc = Linearize<true>(source, source_normals, target,
+                        internal::LinearizationContext(
+                            small_step || stride > 1 ? result.target_from_source : last_linearized,
+                            options));
   result.num_inliers = acc.count;
   result.hessian = acc.hessian;
   result.gradient_outer = acc.gradient_outer;

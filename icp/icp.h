@@ -59,7 +59,7 @@ struct IcpOptions {
   double convergence_rotation_rad = 1e-4;    // stop when |omega| of a step is below (rad)
   double convergence_translation_m = 1e-4;   // ... and |v| is below (m)
   int min_inliers = 12;                      // fewer matches -> not converged
-  int coarse_stride = 4;                     // early iterations use every k-th source point (1 = off; needs >= 100 min_inliers points per subset)
+  int coarse_stride = 4;                     // early iterations use every 2k-th, then every k-th source point (1 = off; a level needs >= 100 min_inliers points per subset)
   double degeneracy_threshold = 0.02;        // min/max eigenvalue ratio of the translation Hessian; a tenth of it for the scaled 6x6 (see icp.cc)
   bool Check() const;
 };

@@ -56,6 +56,11 @@ class KdTree {
   // Nearest point: returns false for an empty tree; else fills index and squared
   // distance (m^2).
   bool Nearest(const Eigen::Vector3f& query, uint32_t* index, float* sq_dist) const;
+  // Nearest point with squared distance <= max_sq_dist (m^2), else false. Same
+  // result as Nearest() followed by the distance test, but the search prunes with
+  // the bound from the start (much cheaper for queries far from every point).
+  bool NearestWithin(const Eigen::Vector3f& query, float max_sq_dist, uint32_t* index,
+                     float* sq_dist) const;
 
   // Up to k nearest points, closest first. Returns how many were found.
   size_t Knn(const Eigen::Vector3f& query,

@@ -1,7 +1,9 @@
 #include "icp/nearest_neighbors.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
+#include <map>
 
 #include <gtest/gtest.h>
 
@@ -44,6 +46,19 @@ TEST(KdTree, MatchesBruteForce) {
     tree.Radius(q, 1.0f, &in_radius, &in_radius_d2);
     const size_t expected = std::count_if(d2.begin(), d2.end(), [](float d) { return d <= 1.0f; });
     EXPECT_EQ(in_radius.size(), expected);
+    // Bounded nearest: found iff the nearest is within the bound (also exactly at
+    // it: the tree's own squared distance, whose float rounding may differ from
+    // the brute force's in the last bit), and then the same point as Nearest().
+    for (const float bound : {0.5f * nearest_d2, nearest_d2, 2.0f * nearest_d2 + 1e-3f}) {
+      uint32_t within;
+      float within_d2;
+      const bool found = tree.NearestWithin(q, bound, &within, &within_d2);
+      EXPECT_EQ(found, nearest_d2 <= bound) << bound;
+      if (found) {
+        EXPECT_EQ(within_d2, nearest_d2);
+        EXPECT_EQ(within, nearest);
+      }
+    }
   }
 }
 
@@ -72,6 +87,44 @@ TEST(VoxelDownsamplePoints, Centroids) {
   EXPECT_TRUE(out[0].isApprox(Eigen::Vector3f(0.2f, 0.2f, 0.2f), 1e-6f));
   EXPECT_TRUE(out[1].isApprox(pts[2], 1e-6f));
   EXPECT_EQ(VoxelDownsamplePoints(pts, 0.0).size(), pts.size());
+}
+
+// Independent reference: std::map from voxel index to (first appearance, sum),
+// in the documented order (first appearance) with the same double summation.
+PointSet ReferenceVoxelGrid(const PointSet& pts, double voxel) {
+  std::map<std::array<int64_t, 3>, std::pair<size_t, Eigen::Vector4d>> cells;
+  for (const auto& p : pts) {
+    if (!p.allFinite()) continue;
+    const std::array<int64_t, 3> key = {static_cast<int64_t>(std::floor(p.x() * (1.0 / voxel))),
+                                        static_cast<int64_t>(std::floor(p.y() * (1.0 / voxel))),
+                                        static_cast<int64_t>(std::floor(p.z() * (1.0 / voxel)))};
+    auto it = cells.try_emplace(key, cells.size(), Eigen::Vector4d::Zero()).first;
+    it->second.second += Eigen::Vector4d(p.x(), p.y(), p.z(), 1.0);
+  }
+  PointSet out(cells.size());
+  for (const auto& [key, cell] : cells) {
+    out[cell.first] = (cell.second.head<3>() / cell.second.w()).cast<float>();
+  }
+  return out;
+}
+
+// The open-addressing fast path and the fallback for voxel indices beyond its
+// 21-bit packing (a point 1e6 m away at 0.05 m voxels) both equal the reference
+// exactly (same order, bit-identical centroids), including negative coordinates
+// and many points per voxel.
+TEST(VoxelDownsamplePoints, EqualsReferenceOnFastPathAndFallback) {
+  PointSet pts = RandomPoints(50000);
+  for (const double voxel : {0.05, 0.3, 2.0}) {
+    const PointSet out = VoxelDownsamplePoints(pts, voxel);
+    const PointSet ref = ReferenceVoxelGrid(pts, voxel);
+    ASSERT_EQ(out.size(), ref.size()) << voxel;
+    for (size_t i = 0; i < out.size(); ++i) ASSERT_EQ(out[i], ref[i]) << voxel << " " << i;
+  }
+  pts.push_back(Eigen::Vector3f(1e6f, -2.f, 3.f));
+  const PointSet out = VoxelDownsamplePoints(pts, 0.05);
+  const PointSet ref = ReferenceVoxelGrid(pts, 0.05);
+  ASSERT_EQ(out.size(), ref.size());
+  for (size_t i = 0; i < out.size(); ++i) ASSERT_EQ(out[i], ref[i]) << i;
 }
 
 }  // namespace
