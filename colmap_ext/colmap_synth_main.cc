@@ -9,7 +9,7 @@
 #include "colmap_ext/synthetic.h"
 
 int main(int argc, char** argv) {
-  if (argc < 2) {
+  if (argc < 2 || argv[1][0] == '-') {
     std::cerr << "usage: lisfm_colmap_synth <output_folder> [num_images=1000] "
                  "[num_points=500000] [track_length=4] [bin|txt]\n";
     return 2;
