@@ -9,6 +9,7 @@ OUT="$(mktemp -d)"
 trap 'rm -rf "$OUT"' EXIT
 CPU="$(lscpu | sed -n 's/^Model name:[[:space:]]*//p' | head -1)"
 echo "CPU: $CPU, $(nproc) cores"
+echo "load before: $(uptime | sed 's/.*load average/load average/')"
 run() {
   local name="$1"; shift
   local t0 t1
@@ -19,8 +20,10 @@ run() {
   size=$(du -sh "$OUT/$name" | cut -f1)
   printf "| %-34s | %8.1f | %6s |\n" "$name $*" "$(echo "$t1 - $t0" | bc)" "$size"
   grep -o "Time [0-9.]* s (scene.*)" "$OUT/$name.log" | sed 's/^/    /' || true
+  grep -o "CPU breakdown.*" "$OUT/$name.log" | sed 's/^/    /' || true
 }
 echo "| run | wall s | size |"
 echo "|---|---|---|"
 run office120 --scene office --duration 120 --camera_rate 2 --lidars spinning
 run office120_lidar_only --scene office --duration 120 --camera_rate 0 --lidars spinning
+echo "load after: $(uptime | sed 's/.*load average/load average/')"

@@ -1,8 +1,8 @@
 #include "sim/camera_simulator.h"
 
 #include <cmath>
-#include <random>
 
+#include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
 #include "core/errors.h"
@@ -41,6 +41,27 @@ CameraRenderer::CameraRenderer(const Scene& scene,
   });
 }
 
+namespace {
+
+inline uint64_t Mix64(uint64_t x) {  // splitmix64 finaliser
+  x ^= x >> 30;
+  x *= 0xbf58476d1ce4e5b9ULL;
+  x ^= x >> 27;
+  x *= 0x94d049bb133111ebULL;
+  x ^= x >> 31;
+  return x;
+}
+
+// Approximately standard normal from a 64-bit hash: the sum of four 16-bit
+// uniforms (Irwin-Hall, variance 4/12) centred and scaled to unit variance.
+inline float HashGaussian(uint64_t h) {
+  const float sum = static_cast<float>((h & 0xffff) + ((h >> 16) & 0xffff) +
+                                       ((h >> 32) & 0xffff) + (h >> 48));
+  return (sum * (1.0f / 65536.0f) - 2.0f) * 1.7320508f;
+}
+
+}  // namespace
+
 cv::Mat CameraRenderer::Render(const SE3& world_from_cam, uint64_t noise_seed) const {
   const int w = model_.width, h = model_.height;
   cv::Mat image(h, w, options_.color ? CV_8UC3 : CV_8UC1);
@@ -51,50 +72,68 @@ cv::Mat CameraRenderer::Render(const SE3& world_from_cam, uint64_t noise_seed) c
   const float max_range = static_cast<float>(options_.max_range);
   const float gain = static_cast<float>(options_.exposure) * 255.f;
   const float sigma = static_cast<float>(options_.noise_sigma * options_.noise_scale);
-  tbb::parallel_for(0, h, [&](int y) {
-    std::mt19937 rng(static_cast<uint32_t>(noise_seed * 0x9E3779B1u + y * 0x85EBCA77u + 1u));
-    std::normal_distribution<float> normal(0.f, 1.f);
-    const size_t total = static_cast<size_t>(w) * samples_;
-    std::vector<Eigen::Vector3f> radiance(w, Eigen::Vector3f::Zero());
-    for (size_t base = 0; base < total; base += 8) {
-      int valid[8];
-      float dirs[8][3];
-      for (int k = 0; k < 8; ++k) {
-        const size_t idx = base + k;
-        valid[k] = idx < total;
-        const Eigen::Vector3f d =
-            valid[k] ? Eigen::Vector3f(rot * rays_[static_cast<size_t>(y) * total + idx])
-                     : Eigen::Vector3f::UnitZ();
-        dirs[k][0] = d.x();
-        dirs[k][1] = d.y();
-        dirs[k][2] = d.z();
-      }
-      RayHit hits[8];
-      scene_.Intersect8(valid, origin_arr, dirs, max_range, hits);
-      for (int k = 0; k < 8; ++k) {
-        if (!valid[k] || !hits[k].hit) continue;
-        const Eigen::Vector3f d(dirs[k][0], dirs[k][1], dirs[k][2]);
-        const Eigen::Vector3f p = origin + hits[k].distance * d;
-        const float albedo = Albedo(texture_, hits[k].surface_id, p);
-        const float shade = 0.55f + 0.45f * std::fabs(hits[k].normal.dot(light));
-        Eigen::Vector3f value = Eigen::Vector3f::Constant(albedo * shade);
-        if (options_.color) value = value.cwiseProduct(SurfaceTint(texture_, hits[k].surface_id));
-        radiance[(base + k) / samples_] += value;
-      }
-    }
-    for (int x = 0; x < w; ++x) {
-      const float scale = gain * vignette_[static_cast<size_t>(y) * w + x] / samples_;
-      if (options_.color) {
-        cv::Vec3b& px = image.at<cv::Vec3b>(y, x);
-        for (int c = 0; c < 3; ++c) {
-          float v = radiance[x][2 - c] * scale;  // BGR
-          if (sigma > 0) v += sigma * normal(rng);
-          px[c] = cv::saturate_cast<uint8_t>(v);
+  const bool color = options_.color;
+  const uint64_t noise_key = Mix64(noise_seed * 0x9E3779B97F4A7C15ULL + 0x632BE59BD9B4E019ULL);
+  constexpr int kBlock = 4;  // 4x4 pixel blocks: one 16-ray packet per subsample
+  const int block_rows = (h + kBlock - 1) / kBlock;
+  const tbb::blocked_range<int> all_rows(0, block_rows, 2);
+  tbb::parallel_for(all_rows, [&](const tbb::blocked_range<int>& r) {
+    for (int by = r.begin(); by != r.end(); ++by) {
+      const int y0 = by * kBlock;
+      for (int x0 = 0; x0 < w; x0 += kBlock) {
+        int pixel_x[16], pixel_y[16], valid[16];
+        for (int k = 0; k < 16; ++k) {
+          pixel_x[k] = x0 + (k & 3);
+          pixel_y[k] = y0 + (k >> 2);
+          valid[k] = pixel_x[k] < w && pixel_y[k] < h;
         }
-      } else {
-        float v = radiance[x].x() * scale;
-        if (sigma > 0) v += sigma * normal(rng);
-        image.at<uint8_t>(y, x) = cv::saturate_cast<uint8_t>(v);
+        Eigen::Vector3f radiance[16];
+        for (int k = 0; k < 16; ++k) radiance[k].setZero();
+        for (int s = 0; s < samples_; ++s) {
+          float dirs[16][3];
+          for (int k = 0; k < 16; ++k) {
+            const Eigen::Vector3f d =
+                valid[k] ? Eigen::Vector3f(
+                               rot * rays_[(static_cast<size_t>(pixel_y[k]) * w + pixel_x[k]) *
+                                               samples_ + s])
+                         : Eigen::Vector3f::UnitZ();
+            dirs[k][0] = d.x();
+            dirs[k][1] = d.y();
+            dirs[k][2] = d.z();
+          }
+          RayHit hits[16];
+          scene_.Intersect16(valid, origin_arr, dirs, max_range, /*coherent=*/true, hits);
+          for (int k = 0; k < 16; ++k) {
+            if (!valid[k] || !hits[k].hit) continue;
+            const Eigen::Vector3f p =
+                origin + hits[k].distance * Eigen::Vector3f(dirs[k][0], dirs[k][1], dirs[k][2]);
+            const float albedo =
+                texture_.Albedo(hits[k].surface_id, p, TextureAxis(hits[k].normal));
+            const float shade = 0.55f + 0.45f * std::fabs(hits[k].normal.dot(light));
+            if (color) {
+              radiance[k] += (albedo * shade) * texture_.Tint(hits[k].surface_id);
+            } else {
+              radiance[k].x() += albedo * shade;
+            }
+          }
+        }
+        for (int k = 0; k < 16; ++k) {
+          if (!valid[k]) continue;
+          const size_t index = static_cast<size_t>(pixel_y[k]) * w + pixel_x[k];
+          const float scale = gain * vignette_[index] / samples_;
+          if (color) {
+            cv::Vec3b& px = image.at<cv::Vec3b>(pixel_y[k], pixel_x[k]);
+            for (int c = 0; c < 3; ++c) {
+              float v = radiance[k][2 - c] * scale;  // BGR
+              if (sigma > 0) v += sigma * HashGaussian(Mix64(noise_key + 3 * index + c));
+              px[c] = cv::saturate_cast<uint8_t>(v);
+            }
+          } else {
+            float v = radiance[k].x() * scale;
+            if (sigma > 0) v += sigma * HashGaussian(Mix64(noise_key + index));
+            image.at<uint8_t>(pixel_y[k], pixel_x[k]) = cv::saturate_cast<uint8_t>(v);
+          }
+        }
       }
     }
   });

@@ -101,7 +101,7 @@ TEST_F(CameraSimulatorTest, TextureAppearsWhereOpenCvProjects) {
     if (!hit.hit) continue;
     const Vec3 x = world_from_cam.translation() + hit.distance * (world_from_cam.rotation() * d);
     points.push_back(x);
-    albedo.push_back(Albedo(TextureOptions(), hit.surface_id, x.cast<float>()));
+    albedo.push_back(Albedo(TextureOptions(), hit.surface_id, x.cast<float>(), hit.normal));
   }
   const auto pixels = ProjectOpenCv(cam, world_from_cam, points);
   std::vector<double> a, rendered, shifted;

@@ -9,10 +9,10 @@ namespace lisfm {
 namespace sim {
 namespace {
 
-float Intensity(const TextureOptions& texture, const RayHit& hit,
+float Intensity(const Texture& texture, const RayHit& hit,
                 const Eigen::Vector3f& point, const Eigen::Vector3f& direction) {
   const float cos_incidence = std::fabs(hit.normal.dot(direction));
-  const float albedo = Albedo(texture, hit.surface_id, point);
+  const float albedo = texture.FootprintAlbedo(hit.surface_id, point, TextureAxis(hit.normal));
   return std::fmin(255.f, 255.f * albedo * (0.2f + 0.8f * cos_incidence));
 }
 
@@ -47,10 +47,9 @@ PointCloud LidarSimulator::SimulateScan(TimestampNs scan_start_ns, int64_t scan_
   const float min_range = static_cast<float>(lidar_.min_range);
   const float max_range = static_cast<float>(lidar_.max_range);
   auto add_point = [&](const RayHit& hit, const SE3& world_from_lidar, const Vec3& dir_lidar,
-                       double t_s, int ring) {
+                       const Vec3& dir_world, double t_s, int ring) {
     if (!hit.hit) return;
     double range = hit.distance;
-    const Vec3 dir_world = world_from_lidar.rotation() * dir_lidar;
     const Eigen::Vector3f hit_world =
         (world_from_lidar.translation() + range * dir_world).cast<float>();
     if (noisy) range += normal(rng);
@@ -79,27 +78,28 @@ PointCloud LidarSimulator::SimulateScan(TimestampNs scan_start_ns, int64_t scan_
       const SE3 world_from_lidar =
           trajectory_.Pose(scan_start_ns + SecondsToNs(t_s)) * lidar_.imu_from_lidar;
       const double az = 2 * M_PI * c / columns;
+      const double cos_az = std::cos(az), sin_az = std::sin(az);
       const float origin[3] = {static_cast<float>(world_from_lidar.translation().x()),
                                static_cast<float>(world_from_lidar.translation().y()),
                                static_cast<float>(world_from_lidar.translation().z())};
       const Mat3 rot = world_from_lidar.RotationMatrix();
-      for (int r0 = 0; r0 < lidar_.rings; r0 += 8) {
-        int valid[8];
-        float dirs[8][3];
-        Vec3 dirs_lidar[8];
-        for (int k = 0; k < 8; ++k) {
+      for (int r0 = 0; r0 < lidar_.rings; r0 += 16) {
+        int valid[16];
+        float dirs[16][3];
+        Vec3 dirs_lidar[16], dirs_world[16];
+        for (int k = 0; k < 16; ++k) {
           const int r = r0 + k;
           valid[k] = r < lidar_.rings;
-          dirs_lidar[k] = valid[k] ? Vec3(cos_el[r] * std::cos(az), cos_el[r] * std::sin(az),
-                                          sin_el[r])
+          dirs_lidar[k] = valid[k] ? Vec3(cos_el[r] * cos_az, cos_el[r] * sin_az, sin_el[r])
                                    : Vec3::UnitX();
-          const Vec3 d = rot * dirs_lidar[k];
-          for (int j = 0; j < 3; ++j) dirs[k][j] = static_cast<float>(d[j]);
+          dirs_world[k] = rot * dirs_lidar[k];
+          for (int j = 0; j < 3; ++j) dirs[k][j] = static_cast<float>(dirs_world[k][j]);
         }
-        RayHit hits[8];
-        scene_.Intersect8(valid, origin, dirs, max_range + 1.f, hits);
-        for (int k = 0; k < 8; ++k) {
-          if (valid[k]) add_point(hits[k], world_from_lidar, dirs_lidar[k], t_s, r0 + k);
+        RayHit hits[16];
+        scene_.Intersect16(valid, origin, dirs, max_range + 1.f, /*coherent=*/false, hits);
+        for (int k = 0; k < 16; ++k) {
+          if (!valid[k]) continue;
+          add_point(hits[k], world_from_lidar, dirs_lidar[k], dirs_world[k], t_s, r0 + k);
         }
       }
     }
@@ -121,10 +121,10 @@ PointCloud LidarSimulator::SimulateScan(TimestampNs scan_start_ns, int64_t scan_
                            std::sin(theta) * std::sin(phi));
       const SE3 world_from_lidar =
           trajectory_.Pose(scan_start_ns + SecondsToNs(t_s)) * lidar_.imu_from_lidar;
-      const RayHit hit = scene_.Intersect(world_from_lidar.translation(),
-                                          world_from_lidar.rotation() * dir_lidar, 0.0,
+      const Vec3 dir_world = world_from_lidar.rotation() * dir_lidar;
+      const RayHit hit = scene_.Intersect(world_from_lidar.translation(), dir_world, 0.0,
                                           lidar_.max_range + 1.0);
-      add_point(hit, world_from_lidar, dir_lidar, t_s, 0);
+      add_point(hit, world_from_lidar, dir_lidar, dir_world, t_s, 0);
     }
   }
   PointCloud cloud;

@@ -7,13 +7,16 @@
 // Spinning (HESAI PandarXT-32-like): `rings` lasers spread from -16 deg at 1
 // deg spacing (32 rings: -16..+15 deg), 2000 azimuth steps per revolution
 // (0.18 deg) fired at equal time steps, azimuth increasing counter-clockwise
-// about the LiDAR z axis starting at +x; one column's rings fire together.
+// about the LiDAR z axis starting at +x; one column's rings fire together
+// (as the XT-32 fires all lasers of an azimuth step), so the pose is
+// evaluated once per column and its rays are traced as Embree packets of 16.
 // Solid-state (Livox MID-70-like): 70.4 deg circular field of view around the
 // LiDAR x axis, 100k points/s along a non-repetitive rosette (two
 // incommensurate prism rotations, so successive scans fill the disc).
 // Range noise: Gaussian, sigma = range_sigma * noise_scale; points outside
 // [min_range, max_range] are dropped. Intensity in [0, 255] from the surface
-// albedo and the incidence angle.
+// albedo averaged over the beam footprint (Texture::FootprintAlbedo) and the
+// incidence angle.
 //
 // Thread safety: SimulateScan() is const and may run concurrently.
 #pragma once
@@ -57,7 +60,7 @@ class LidarSimulator {
   const Scene& scene_;
   const SplineTrajectory& trajectory_;
   RigLidar lidar_;
-  TextureOptions texture_;
+  Texture texture_;
   LidarSimOptions options_;
 };
 

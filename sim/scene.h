@@ -97,6 +97,15 @@ class Scene {
                   const float directions[8][3],
                   float max_range,
                   RayHit hits[8]) const;
+  // Sixteen rays from one origin at once (Embree ray packet); `valid[i]` = 0
+  // skips ray i. `coherent`: the rays are neighbours (e.g. a 4x4 pixel
+  // block), which lets Embree trace them as a packet.
+  void Intersect16(const int valid[16],
+                   const float origin[3],
+                   const float directions[16][3],
+                   float max_range,
+                   bool coherent,
+                   RayHit hits[16]) const;
 
   const std::vector<Triangle>& triangles() const { return triangles_; }
   const WalkingRoute& route() const { return route_; }

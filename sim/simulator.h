@@ -56,6 +56,10 @@ struct SimulationSummary {
   size_t num_triangles = 0;
   double seconds_scene = 0, seconds_imu = 0, seconds_lidar = 0, seconds_cameras = 0,
          seconds_total = 0;
+  // Breakdown in CPU seconds summed over threads (thread CPU clocks, so other
+  // load on the machine does not inflate them): LiDAR ray casting + point
+  // generation, PCD writing, camera rendering, PNG encoding + writing.
+  double cpu_lidar_cast = 0, cpu_lidar_write = 0, cpu_camera_render = 0, cpu_camera_write = 0;
 };
 
 // Adapts `rig` to the requested LiDAR list: keeps the rig's LiDAR of each
