@@ -94,7 +94,7 @@ struct BayesianIcpOptions {
   // independent error per occupied cell (tempered likelihood, power N_eff / N).
   // The scale was calibrated on simulated office scan pairs only and checked on
   // held-out hall and staircase pairs (scripts/bench_icp_covariance.sh,
-  // docs/BENCHMARKS_icp.md). Default (model A): scale 3.15, no cells. Use scale 1 and
+  // docs/BENCHMARKS.md (ICP section)). Default (model A): scale 3.15, no cells. Use scale 1 and
   // no cells for residuals that really are independent (synthetic i.i.d. noise).
   double noise_sigma_m = 0;
   double noise_sigma_scale = 3.15;

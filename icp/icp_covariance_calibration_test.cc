@@ -1,6 +1,6 @@
 // Guards the calibration of the Bayesian ICP covariance on simulated scan pairs
 // of a scene that was NOT used to tune it (hall; tuning used office pairs, see
-// scripts/bench_icp_covariance.sh and docs/BENCHMARKS_icp.md).
+// scripts/bench_icp_covariance.sh and docs/BENCHMARKS.md (ICP section)).
 #include <gtest/gtest.h>
 
 #include "icp/bayesian_icp.h"
@@ -33,7 +33,7 @@ std::vector<CovarianceSample> RunHallPairs(int count, std::vector<CovarianceSamp
 }
 
 // Mean NEES over 8 held-out hall pairs must stay below 40. Measured on 100
-// pairs per scene (docs/BENCHMARKS_icp.md): the tuned default gives mean NEES 6.0
+// pairs per scene (docs/BENCHMARKS.md (ICP section)): the tuned default gives mean NEES 6.0
 // (office, tuning), 8.5 (staircase) and 16.9 (hall; the model does not fully
 // transfer there), while an uninflated likelihood (noise_sigma_scale 1) gives
 // 57-157 and the closed form 78-308. 40 sits between the two groups with room for

@@ -75,7 +75,7 @@ double PointToPointRms(const PointSet& source, const KdTree& target, const SE3& 
 
 // Why point-to-plane with 10-neighbour normals lands 2.9 deg / 2.7 mm from the
 // README's reference (as do PCL IterativeClosestPointWithNormals and Open3D
-// point-to-plane, see docs/BENCHMARKS_icp.md): the reference is the optimum of a
+// point-to-plane, see docs/BENCHMARKS.md (ICP section)): the reference is the optimum of a
 // different objective. Measured (397 matches each): point-to-point RMS 6.35 mm at
 // the reference vs 6.71 mm at our result; point-to-plane RMS 4.05 mm at the
 // reference vs 3.53 mm at our result. Each transform is the better one for its

@@ -4,7 +4,7 @@
 // deliver, halves memory traffic, and is accurate to < 1 um at 100 m. The tree is
 // nanoflann's KD-tree (header-only, single-precision L2, exact search). The
 // comparison with FLANN's exact single KD-tree is `lisfm_icp_bench DATA --knn`
-// (scripts/bench_icp.sh, docs/BENCHMARKS_icp.md): same results, nanoflann's
+// (scripts/bench_icp.sh, docs/BENCHMARKS.md (ICP section)): same results, nanoflann's
 // queries 1.3-1.5x faster (1-NN and 10-NN over 69k LiDAR points), no copy of the
 // data, header-only. FLANN's randomised forests are approximate, which ICP's
 // residual statistics and the covariances do not tolerate.

@@ -11,8 +11,8 @@ source "$(dirname "${BASH_SOURCE[0]}")/common.sh"
 PAIRS="${1:-100}"
 mkdir -p "$LISFM_BUILD_DIR"
 cmake -S "$LISFM_ROOT" -B "$LISFM_BUILD_DIR" -DCMAKE_BUILD_TYPE=Release \
-  -DLISFM_BENCHMARKS_ENABLED=ON >"$LISFM_BUILD_DIR.cmake.log" 2>&1 \
-  || { cat "$LISFM_BUILD_DIR.cmake.log"; exit 1; }
+  -DLISFM_BENCHMARKS_ENABLED=ON >"$LISFM_BUILD_DIR/cmake.log" 2>&1 \
+  || { cat "$LISFM_BUILD_DIR/cmake.log"; exit 1; }
 cmake --build "$LISFM_BUILD_DIR" --target lisfm_icp_covariance_bench -j"$LISFM_JOBS"
 echo "CPU: $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | xargs), $(nproc) threads; $(uptime)"
 "$LISFM_BUILD_DIR/icp/lisfm_icp_covariance_bench" "$PAIRS"

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Benchmark of `lisfm simulate`: a 120 s office sequence (1200 spinning scans,
 # 5 cameras at 2 Hz = 1200 images, IMU 400 Hz). Prints a table for
-# docs/BENCHMARKS_simulate.md.  Usage: scripts/bench_simulate.sh [build_dir]
+# docs/BENCHMARKS.md (simulate section).  Usage: scripts/bench_simulate.sh [build_dir]
 set -euo pipefail
 BUILD="${1:-build}"
 LISFM="$BUILD/apps/lisfm"
