@@ -75,6 +75,8 @@ int RunLio(int argc, char** argv) {
   options.AddDouble("map_voxel_size", &map_voxel, "m, voxel size of the written map.pcd");
   options.AddDouble("Lio.imu_noise_inflation", &lio.imu_noise_inflation,
                     "factor on the rig's IMU noise densities");
+  options.AddInt("Lio.point_stride", &lio.point_stride,
+                 "keep every n-th raw point before down-sampling (1 = all)");
   options.AddDouble("Lio.scan_voxel_size", &lio.scan_voxel_size, "m, scan down-sampling voxel");
   options.AddDouble("Lio.min_range", &lio.min_range, "m, closer points are dropped (blind zone)");
   options.AddDouble("Lio.max_range", &lio.max_range, "m, farther points are dropped");
@@ -87,8 +89,12 @@ int RunLio(int argc, char** argv) {
   options.AddInt("Lio.max_iterations", &lio.max_iterations, "IEKF iterations per scan");
   options.AddDouble("Lio.convergence_rotation", &lio.convergence_rotation, "rad");
   options.AddDouble("Lio.convergence_translation", &lio.convergence_translation, "m");
+  options.AddDouble("Lio.reassociate_translation", &lio.reassociate_translation,
+                    "m: after convergence, search neighbours again only if the pose moved more");
+  options.AddDouble("Lio.reassociate_rotation", &lio.reassociate_rotation,
+                    "rad: ... or rotated more than this since the last search");
   options.AddDouble("Lio.degeneracy_threshold", &lio.degeneracy_threshold,
-                    "eigenvalue of the update information below which a direction is weak");
+                    "eigenvalue of the per-point information HᵀH/N below which a direction is weak");
   options.AddDouble("Lio.keyframe_distance", &lio.keyframe_distance, "m between keyframes");
   options.AddDouble("Lio.keyframe_angle_deg", &lio.keyframe_angle_deg, "deg between keyframes");
   options.AddDouble("Map.voxel_size", &lio.map.voxel_size, "m, iVox hash voxel edge");

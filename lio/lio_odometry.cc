@@ -65,7 +65,8 @@ struct Normal6 {
 }  // namespace
 
 bool LioOptions::Check() const {
-  return imu_noise_inflation > 0 && scan_voxel_size >= 0 && min_range >= 0 &&
+  return imu_noise_inflation > 0 && point_stride >= 1 && reassociate_translation >= 0 &&
+         reassociate_rotation >= 0 && scan_voxel_size >= 0 && min_range >= 0 &&
          max_range > min_range && num_neighbours >= 3 && max_neighbour_distance > 0 &&
          max_plane_residual > 0 && point_noise_std > 0 && max_iterations >= 1 &&
          convergence_rotation > 0 && convergence_translation > 0 && map.Check() &&
@@ -361,7 +362,16 @@ LioFrameResult LioOdometry::ProcessFrame(const std::vector<LidarScanInput>& scan
   PointCloud down;
   down.stamp_ns = t_end;
   for (const auto& s : scans) {
-    const PointCloud kept = VoxelDownsample(*s.cloud, options_.scan_voxel_size);
+    PointCloud strided;
+    const PointCloud* input = s.cloud;
+    if (options_.point_stride > 1) {  // FAST-LIO2's point_filter_num
+      strided.points.reserve(s.cloud->size() / options_.point_stride + 1);
+      for (size_t i = 0; i < s.cloud->size(); i += options_.point_stride) {
+        strided.points.push_back(s.cloud->points[i]);
+      }
+      input = &strided;
+    }
+    const PointCloud kept = VoxelDownsample(*input, options_.scan_voxel_size);
     deskew(s, kept.points, &down);
   }
   RemoveNonFinite(&down);
@@ -481,6 +491,8 @@ LioFrameResult LioOdometry::ProcessFrame(const std::vector<LidarScanInput>& scan
   bool converged = false;
   bool searched_after_convergence = false;
   associate(R_.toRotationMatrix(), p_);
+  Quat R_assoc = R_;
+  Vec3 p_assoc = p_;
   int it = 0;
   for (; it < options_.max_iterations; ++it) {
     normal = accumulate(R_.toRotationMatrix(), p_);
@@ -512,8 +524,18 @@ LioFrameResult LioOdometry::ProcessFrame(const std::vector<LidarScanInput>& scan
         ++it;
         break;
       }
-      // Re-associate once at the converged pose, then iterate again (FAST-LIO2).
+      // Re-associate once at the converged pose, then iterate again (FAST-LIO2),
+      // unless the pose barely moved since the last association: then the
+      // same neighbours would be found and the result is already converged.
+      if ((p_ - p_assoc).norm() < options_.reassociate_translation &&
+          so3::AngularDistance(R_, R_assoc) < options_.reassociate_rotation) {
+        converged = true;
+        ++it;
+        break;
+      }
       associate(R_.toRotationMatrix(), p_);
+      R_assoc = R_;
+      p_assoc = p_;
       searched_after_convergence = true;
     }
   }
@@ -543,7 +565,7 @@ LioFrameResult LioOdometry::ProcessFrame(const std::vector<LidarScanInput>& scan
   result.num_matched = normal.count;
 
   // Degeneracy: eigenvalues of the information the points gave.
-  Eigen::SelfAdjointEigenSolver<Mat6> eig(normal.HtH * inv_var);
+  Eigen::SelfAdjointEigenSolver<Mat6> eig(normal.HtH / static_cast<double>(normal.count));
   result.degeneracy.eigenvalues = eig.eigenvalues();
   result.degeneracy.weakest_direction = eig.eigenvectors().col(0);
   for (int i = 0; i < 6; ++i) {

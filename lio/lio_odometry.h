@@ -37,7 +37,8 @@ struct LioOptions {
   // IMU process noise: the rig's continuous-time densities times this factor
   // (absorbs discretisation and vibration; FAST-LIO2 uses far larger values).
   double imu_noise_inflation = 10.0;
-  double scan_voxel_size = 0.3;     // m, down-sampling of each de-skewed scan
+  int point_stride = 2;             // keep every n-th raw point before down-sampling (1 = all)
+  double scan_voxel_size = 0.4;     // m, down-sampling of each scan
   double min_range = 0.5;           // m, points closer to the sensor are dropped (blind)
   double max_range = 100.0;         // m
   int num_neighbours = 5;           // k of the plane fit
@@ -47,11 +48,16 @@ struct LioOptions {
   int max_iterations = 4;           // IEKF iterations per scan
   double convergence_rotation = 1e-4;     // rad, stop when the step is below both
   double convergence_translation = 1e-3;  // m
-  // Eigenvalue of HᵀH/σ² (1/m² for translation, 1/rad² for rotation) below which
-  // a direction counts as weakly constrained: 1e5 means this scan alone pins it
-  // to worse than ~3 mm (or 3 mrad). Office scans: min eigenvalue ~5e5; the
-  // simulated staircase: ~6e4.
-  double degeneracy_threshold = 1e5;
+  // After convergence the neighbours are searched again only if the pose moved
+  // more than this since the last search (0 = always, as FAST-LIO2 does).
+  double reassociate_translation = 0.01;  // m
+  double reassociate_rotation = 0.0035;   // rad (0.2 deg)
+  // Degeneracy test on the geometry of one scan, independent of its point
+  // count: eigenvalues of HᵀH/N over [θ; p] (N matched points). The
+  // translation part is the spread of the plane normals: 1/3 each for a
+  // perfect box, near 0 along a corridor axis. A direction is weak below this
+  // value. Simulated office/hall scans: 10th percentile ~0.11; staircase: median ~0.02.
+  double degeneracy_threshold = 0.05;
   VoxelMapOptions map;              // the incremental map
   double keyframe_distance = 1.0;   // m between keyframes
   double keyframe_angle_deg = 15.0; // or this much rotation
@@ -61,7 +67,7 @@ struct LioOptions {
 
 // Which directions one update constrained weakly.
 struct DegeneracyReport {
-  Vec6 eigenvalues = Vec6::Zero();  // of HᵀH/σ² over [θ; p], ascending
+  Vec6 eigenvalues = Vec6::Zero();  // of HᵀH/N over [θ; p] (N matched points), ascending
   int num_weak = 0;                 // eigenvalues below the threshold
   Vec6 weakest_direction = Vec6::Zero();
 };
