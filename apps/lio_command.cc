@@ -18,6 +18,7 @@
 #include "core/logging.h"
 #include "core/options.h"
 #include "core/progress.h"
+#include "importers/lidar_frames.h"
 #include "importers/sequence.h"
 #include "lio/lidar_only_odometry.h"
 #include "lio/lio_odometry.h"
@@ -137,8 +138,6 @@ int RunLio(int argc, char** argv) {
     CreateDirs(kf_tmp);
   }
 
-  size_t imu_next = 0;
-  std::vector<size_t> next_scan(seq.rig.lidars.size(), 0);
   Trajectory trajectory;
   std::vector<StampedPose> keyframe_poses;
   std::vector<double> times_ms;
@@ -146,47 +145,16 @@ int RunLio(int argc, char** argv) {
   std::ostringstream scans_csv;
   scans_csv << "#t_ns,processed,raw_points,downsampled,matched,iterations,time_ms,num_weak,"
                "min_eigenvalue,keyframe,message\n";
-  const size_t num_frames = max_scans > 0 ? std::min<size_t>(max_scans, primary_scans.size())
-                                          : primary_scans.size();
+  // lidar_only uses the primary LiDAR alone.
+  LidarFrameReader reader(seq, lidar_only ? std::vector<int>{primary} : used);
+  const size_t num_frames = max_scans > 0 ? std::min<size_t>(max_scans, reader.num_frames())
+                                          : reader.num_frames();
   ProgressReporter progress("lio", static_cast<int64_t>(num_frames));
-  TimestampNs prev_primary_ns = INT64_MIN;
-  for (size_t f = 0; f < num_frames; ++f) {
-    std::vector<PointCloud> clouds;
-    std::vector<int> sensor_ids;
-    clouds.push_back(ReadPointCloud(primary_scans[f].path));
-    clouds.back().stamp_ns = primary_scans[f].t_ns;
-    sensor_ids.push_back(primary);
-    // Secondary LiDARs: scans that start before this primary scan starts
-    // (and after the previous one) join this frame.
-    for (size_t u = 1; u < used.size() && !lidar_only; ++u) {
-      const int k = used[u];
-      auto& idx = next_scan[k];
-      while (idx < seq.lidar_scans[k].size() && seq.lidar_scans[k][idx].t_ns <= primary_scans[f].t_ns) {
-        if (seq.lidar_scans[k][idx].t_ns > prev_primary_ns) {
-          clouds.push_back(ReadPointCloud(seq.lidar_scans[k][idx].path));
-          clouds.back().stamp_ns = seq.lidar_scans[k][idx].t_ns;
-          sensor_ids.push_back(k);
-        }
-        ++idx;
-      }
-    }
-    prev_primary_ns = primary_scans[f].t_ns;
-    // Frame end and IMU up to just past it.
-    TimestampNs frame_end = INT64_MIN;
-    for (size_t c = 0; c < clouds.size(); ++c) {
-      float tmax = 0;
-      for (const auto& p : clouds[c].points) tmax = std::max(tmax, p.t);
-      frame_end = std::max(frame_end, clouds[c].stamp_ns + SecondsToNs(seq.rig.lidars[sensor_ids[c]].time_offset_s) +
-                                          SecondsToNs(tmax));
-    }
-    while (imu_next < seq.imu.size() &&
-           (odom.LatestImuTime() < frame_end || seq.imu[imu_next].t_ns <= frame_end)) {
-      odom.AddImu(seq.imu[imu_next++]);
-    }
-    std::vector<LidarScanInput> inputs;
-    for (size_t c = 0; c < clouds.size(); ++c) inputs.push_back({sensor_ids[c], &clouds[c]});
+  LidarFrame frame;
+  for (size_t f = 0; f < num_frames && reader.Next(&frame); ++f) {
+    reader.FeedImuUntil(frame.end_ns, &odom);
     const LioFrameResult r =
-        lidar_only ? lidar_only->ProcessScan(clouds.front()) : odom.ProcessFrame(inputs);
+        lidar_only ? lidar_only->ProcessScan(frame.clouds.front()) : odom.ProcessFrame(frame.Inputs());
     if (r.processed) {
       ++processed;
       times_ms.push_back(r.time_ms);

@@ -10,6 +10,7 @@
 #include "core/evaluation.h"
 #include "core/io/cloud_io.h"
 #include "core/io/trajectory_io.h"
+#include "importers/lidar_frames.h"
 #include "importers/sequence.h"
 #include "sim/simulator.h"
 #include "tests/common/test_utils.h"
@@ -51,41 +52,11 @@ LioRun RunLio(const Sequence& seq, const LioOptions& options, const std::vector<
   }
   LioOdometry odom(options, seq.rig.imu, extrinsics, offsets);
   LioRun run;
-  size_t imu_next = 0;
-  std::vector<size_t> next(seq.lidar_scans.size(), 0);
-  const auto& primary = seq.lidar_scans[lidars[0]];
-  TimestampNs prev = INT64_MIN;
-  for (const auto& f : primary) {
-    std::vector<PointCloud> clouds;
-    std::vector<int> ids;
-    clouds.push_back(ReadPointCloud(f.path));
-    clouds.back().stamp_ns = f.t_ns;
-    ids.push_back(lidars[0]);
-    for (size_t u = 1; u < lidars.size(); ++u) {
-      const auto& scans = seq.lidar_scans[lidars[u]];
-      while (next[lidars[u]] < scans.size() && scans[next[lidars[u]]].t_ns <= f.t_ns) {
-        if (scans[next[lidars[u]]].t_ns > prev) {
-          clouds.push_back(ReadPointCloud(scans[next[lidars[u]]].path));
-          clouds.back().stamp_ns = scans[next[lidars[u]]].t_ns;
-          ids.push_back(lidars[u]);
-        }
-        ++next[lidars[u]];
-      }
-    }
-    prev = f.t_ns;
-    TimestampNs end = 0;
-    for (const auto& c : clouds) {
-      float tmax = 0;
-      for (const auto& p : c.points) tmax = std::max(tmax, p.t);
-      end = std::max(end, c.stamp_ns + SecondsToNs(tmax));
-    }
-    while (imu_next < seq.imu.size() &&
-           (odom.LatestImuTime() < end || seq.imu[imu_next].t_ns <= end)) {
-      odom.AddImu(seq.imu[imu_next++]);
-    }
-    std::vector<LidarScanInput> inputs;
-    for (size_t c = 0; c < clouds.size(); ++c) inputs.push_back({ids[c], &clouds[c]});
-    const LioFrameResult r = odom.ProcessFrame(inputs);
+  LidarFrameReader reader(seq, lidars);
+  LidarFrame frame;
+  while (reader.Next(&frame)) {
+    reader.FeedImuUntil(frame.end_ns, &odom);
+    const LioFrameResult r = odom.ProcessFrame(frame.Inputs());
     run.results.push_back(r);
     if (r.processed) {
       EXPECT_TRUE(r.world_from_imu.translation().allFinite());
