@@ -18,7 +18,7 @@ run() {
   t1=$(date +%s.%N)
   local size
   size=$(du -sh "$OUT/$name" | cut -f1)
-  printf "| %-34s | %8.1f | %6s |\n" "$name $*" "$(echo "$t1 - $t0" | bc)" "$size"
+  printf "| %-34s | %8.1f | %6s |\n" "$name $*" "$(awk -v a="$t0" -v b="$t1" 'BEGIN{print b-a}')" "$size"
   grep -o "Time [0-9.]* s (scene.*)" "$OUT/$name.log" | sed 's/^/    /' || true
   grep -o "CPU breakdown.*" "$OUT/$name.log" | sed 's/^/    /' || true
 }
