@@ -529,49 +529,6 @@ RayHit Scene::Intersect(const Vec3& origin,
   return hit;
 }
 
-void Scene::Intersect8(const int valid[8],
-                       const float origin[3],
-                       const float directions[8][3],
-                       float max_range,
-                       RayHit hits[8]) const {
-  RTCIntersectContext context;
-  rtcInitIntersectContext(&context);
-  context.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
-  alignas(32) RTCRayHit8 rh;
-  alignas(32) int valid_aligned[8];
-  for (int i = 0; i < 8; ++i) {
-    valid_aligned[i] = valid[i] ? -1 : 0;
-    rh.ray.org_x[i] = origin[0];
-    rh.ray.org_y[i] = origin[1];
-    rh.ray.org_z[i] = origin[2];
-    rh.ray.dir_x[i] = directions[i][0];
-    rh.ray.dir_y[i] = directions[i][1];
-    rh.ray.dir_z[i] = directions[i][2];
-    rh.ray.tnear[i] = 0.f;
-    rh.ray.tfar[i] = max_range;
-    rh.ray.time[i] = 0.f;
-    rh.ray.mask[i] = 0xFFFFFFFFu;
-    rh.ray.id[i] = static_cast<unsigned>(i);
-    rh.ray.flags[i] = 0;
-    rh.hit.geomID[i] = RTC_INVALID_GEOMETRY_ID;
-    rh.hit.instID[0][i] = RTC_INVALID_GEOMETRY_ID;
-  }
-  rtcIntersect8(valid_aligned, embree_->scene, &context, &rh);
-  for (int i = 0; i < 8; ++i) {
-    hits[i] = RayHit();
-    if (!valid[i] || rh.hit.geomID[i] == RTC_INVALID_GEOMETRY_ID) continue;
-    hits[i].hit = true;
-    hits[i].distance = rh.ray.tfar[i];
-    Eigen::Vector3f n(rh.hit.Ng_x[i], rh.hit.Ng_y[i], rh.hit.Ng_z[i]);
-    n.normalize();
-    if (n.dot(Eigen::Vector3f(directions[i][0], directions[i][1], directions[i][2])) > 0) {
-      n = -n;
-    }
-    hits[i].normal = n;
-    hits[i].surface_id = triangles_[rh.hit.primID[i]].surface_id;
-  }
-}
-
 void Scene::Intersect16(const int valid[16],
                         const float origin[3],
                         const float directions[16][3],

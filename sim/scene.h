@@ -90,13 +90,6 @@ class Scene {
                    const Vec3& direction,
                    double min_range = 0.0,
                    double max_range = 1e4) const;
-  // Eight rays at once (coherent packets, e.g. camera rows); `valid[i]` = 0
-  // skips ray i.
-  void Intersect8(const int valid[8],
-                  const float origin[3],
-                  const float directions[8][3],
-                  float max_range,
-                  RayHit hits[8]) const;
   // Sixteen rays from one origin at once (Embree ray packet); `valid[i]` = 0
   // skips ray i. `coherent`: the rays are neighbours (e.g. a 4x4 pixel
   // block), which lets Embree trace them as a packet.
