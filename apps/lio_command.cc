@@ -86,6 +86,8 @@ int RunLio(int argc, char** argv) {
                     "m, farthest allowed plane neighbour");
   options.AddDouble("Lio.max_plane_residual", &lio.max_plane_residual,
                     "m, max distance of a neighbour to its plane");
+  options.AddDouble("Lio.max_point_residual", &lio.max_point_residual,
+                    "m, points farther from their plane are not used");
   options.AddDouble("Lio.point_noise_std", &lio.point_noise_std, "m, point-to-plane noise std");
   options.AddInt("Lio.max_iterations", &lio.max_iterations, "IEKF iterations per scan");
   options.AddDouble("Lio.convergence_rotation", &lio.convergence_rotation, "rad");

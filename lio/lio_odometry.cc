@@ -68,9 +68,9 @@ bool LioOptions::Check() const {
   return imu_noise_inflation > 0 && point_stride >= 1 && reassociate_translation >= 0 &&
          reassociate_rotation >= 0 && scan_voxel_size >= 0 && min_range >= 0 &&
          max_range > min_range && num_neighbours >= 3 && max_neighbour_distance > 0 &&
-         max_plane_residual > 0 && point_noise_std > 0 && max_iterations >= 1 &&
-         convergence_rotation > 0 && convergence_translation > 0 && map.Check() &&
-         keyframe_distance > 0 && keyframe_angle_deg > 0 && init.Check();
+         max_plane_residual > 0 && max_point_residual > 0 && point_noise_std > 0 &&
+         max_iterations >= 1 && convergence_rotation > 0 && convergence_translation > 0 &&
+         map.Check() && keyframe_distance > 0 && keyframe_angle_deg > 0 && init.Check();
 }
 
 LioOdometry::LioOdometry(const LioOptions& options,
@@ -469,8 +469,12 @@ LioFrameResult LioOdometry::ProcessFrame(const std::vector<LidarScanInput>& scan
             const Vec3 pw = R * pb + t;
             const Vec3 n = planes[i].head<3>();
             const double res = n.dot(pw) + planes[i](3);
-            // FAST-LIO2's gate: closer points must fit tighter.
+            // FAST-LIO2's gate (closer points must fit tighter) and an absolute
+            // one: across a 0.17 m stair riser, or at a step edge where the 5
+            // neighbours span a tread and a riser, the range-relative gate
+            // alone admits biased matches that pull the pose down the stairs.
             if (1.0 - 0.9 * std::abs(res) / std::sqrt(pb.norm()) <= 0.9) continue;
+            if (std::abs(res) > options_.max_point_residual) continue;
             Vec6 h;
             h.head<3>() = -(R * Hat(pb)).transpose() * n;  // d res / d θ (right perturbation)
             h.tail<3>() = n;                               // d res / d p

@@ -5,11 +5,14 @@
 #   office driven by the real HILTI 2022 exp04 handheld motion (120 s),
 #   the two-storey staircase (LiDAR-degenerate) and the large hall (generated walks).
 #   scripts/bench_lio.sh [WORK_DIR] [DURATION_S]     (defaults: /tmp/lisfm_bench_lio, 120)
+# LISFM_LIO_ARGS adds options to every `lisfm lio` run, e.g. the pre-fix plane
+# gates: LISFM_LIO_ARGS="--Lio.max_plane_residual 0.1 --Lio.max_point_residual 1e9".
 # Assumes a built tree (scripts/test.sh or scripts/demo.sh builds it).
 set -euo pipefail
 source "$(dirname "${BASH_SOURCE[0]}")/common.sh"
 WORK="${1:-/tmp/lisfm_bench_lio}"
 DURATION="${2:-120}"
+read -r -a LIO_ARGS <<< "${LISFM_LIO_ARGS:-}"
 EXP04="$LISFM_SHARED_DATA/hilti2022_groundtruth/exp_04_construction_upper_level_easy_2_2022-03-03-11-48-59_imu.txt"
 [ -x "$LISFM" ] || { echo "bench_lio: build first ($LISFM missing)" >&2; exit 1; }
 mkdir -p "$WORK"
@@ -32,7 +35,7 @@ for seq in office_exp04 staircase hall; do
     rm -rf "$out"
     start=$(date +%s%N)
     "$LISFM" lio --input_path "$WORK/$seq" --output_path "$out" --method "$method" \
-      --write_keyframes 0 --quiet
+      --write_keyframes 0 --quiet ${LIO_ARGS[@]+"${LIO_ARGS[@]}"}
     wall=$(( $(date +%s%N) - start ))
     "$LISFM" evaluate --reference "$WORK/$seq/groundtruth.txt" --estimate "$out/trajectory.txt" \
       --max_dt 0.006 --output_path "$out/eval" --quiet > /dev/null
@@ -57,7 +60,7 @@ PY
 done
 
 echo
-echo "lisfm lio benchmark ($(nproc) cores, $(lscpu | sed -n 's/Model name: *//p' | head -1), load $(cut -d' ' -f1-3 /proc/loadavg)); sequences ${DURATION} s"
+echo "lisfm lio benchmark ${LISFM_LIO_ARGS:+(${LISFM_LIO_ARGS}) }($(nproc) cores, $(lscpu | sed -n 's/Model name: *//p' | head -1), load $(cut -d' ' -f1-3 /proc/loadavg)); sequences ${DURATION} s"
 echo
 echo "| sequence | method | frames used | median ms/scan | p95 ms | filter RTF | wall RTF (with I/O) | ATE rmse cm | ATE max cm | RPE 1 m cm | scans with weak dirs |"
 echo "|---|---|---|---|---|---|---|---|---|---|---|"
