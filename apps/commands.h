@@ -25,5 +25,7 @@ int RunModelAnalyzer(int argc, char** argv);   // colmap_commands.cc
 int RunDatabaseInfo(int argc, char** argv);    // colmap_commands.cc
 int RunSimulate(int argc, char** argv);  // simulate_command.cc
 int RunLio(int argc, char** argv);       // lio_command.cc
+int RunModelEvaluator(int argc, char** argv);  // model_evaluator_command.cc
+int RunGlobalMapper(int argc, char** argv);    // global_mapper_command.cc
 
 }  // namespace lisfm

@@ -30,6 +30,12 @@ const std::vector<Command>& Commands() {
        &RunModelAnalyzer},
       {"database_info", "COLMAP database: schema, rows per table, pose priors",
        &RunDatabaseInfo},
+      {"global_mapper",
+       "global SfM on a COLMAP database (rotation/translation averaging, rig BA with priors and "
+       "LiDAR constraints)",
+       &RunGlobalMapper},
+      {"model_evaluator", "score a COLMAP model's cameras against reference cameras (AUC, errors)",
+       &RunModelEvaluator},
   };
   return commands;
 }

@@ -844,6 +844,16 @@ Mat3 RowMajor3(const Eigen::Matrix<double, 9, 1>& v) {
 }
 }  // namespace
 
+void Database::DeleteMatchesAndGeometry(image_t image_id1, image_t image_id2) {
+  const std::string id = std::to_string(ImagePairToPairId(image_id1, image_id2));
+  Exec("DELETE FROM matches WHERE pair_id = " + id);
+  Exec("DELETE FROM two_view_geometries WHERE pair_id = " + id);
+}
+
+void Database::ClearMatches() { Exec("DELETE FROM matches"); }
+
+void Database::ClearTwoViewGeometries() { Exec("DELETE FROM two_view_geometries"); }
+
 void Database::WriteTwoViewGeometry(image_t image_id1,
                                     image_t image_id2,
                                     const TwoViewGeometry& geometry) {

@@ -196,6 +196,11 @@ class Database {
   bool ExistsTwoViewGeometry(image_t image_id1, image_t image_id2) const;
   // As stored (image_id1 < image_id2 of the pair id).
   std::vector<std::pair<image_pair_t, TwoViewGeometry>> ReadAllTwoViewGeometries() const;
+  // Remove the matches and the two-view geometry of one pair / of all pairs
+  // (COLMAP's ClearMatches / ClearTwoViewGeometries).
+  void DeleteMatchesAndGeometry(image_t image_id1, image_t image_id2);
+  void ClearMatches();
+  void ClearTwoViewGeometries();
 
   // ---- newer schema elements (empty when absent) ----
   std::vector<DbRig> ReadRigs() const;

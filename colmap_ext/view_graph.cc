@@ -1,0 +1,457 @@
+#include "colmap_ext/view_graph.h"
+
+#include <ceres/ceres.h>
+#include <oneapi/tbb/parallel_for.h>
+#include <oneapi/tbb/task_arena.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <numeric>
+#include <opencv2/calib3d.hpp>
+#include <opencv2/core.hpp>
+#include <optional>
+#include <string>
+#include <unordered_map>
+#include <utility>
+
+#include "core/errors.h"
+#include "core/logging.h"
+
+namespace lisfm {
+namespace colmap {
+
+bool ViewGraphOptions::Check() const {
+  return min_num_inliers >= 5 && min_inlier_ratio >= 0.0 &&
+         min_inlier_ratio <= 1.0 && max_error_px > 0.0 &&
+         ransac_confidence > 0.0 && ransac_confidence < 1.0 &&
+         ransac_max_iterations > 0 && ransac_max_num_matches >= 5 &&
+         refine_max_num_matches >= 5 && (num_threads == -1 || num_threads > 0);
+}
+
+namespace {
+
+// Sampson error (Hartley & Zisserman 2003, Eq. 11.9) of x2^T E x1 = 0 on the
+// normalised plane, as a signed residual whose square is the Sampson distance.
+// Invariant to the scale of E.
+template <typename T>
+T SampsonResidual(const Eigen::Matrix<T, 3, 3>& E,
+                  const Vec2& x1,
+                  const Vec2& x2) {
+  const Eigen::Matrix<T, 3, 1> h1(T(x1.x()), T(x1.y()), T(1));
+  const Eigen::Matrix<T, 3, 1> h2(T(x2.x()), T(x2.y()), T(1));
+  const Eigen::Matrix<T, 3, 1> e_x1 = E * h1;
+  const Eigen::Matrix<T, 3, 1> et_x2 = E.transpose() * h2;
+  const T numerator = h2.dot(e_x1);
+  const T denominator = e_x1(0) * e_x1(0) + e_x1(1) * e_x1(1) +
+                        et_x2(0) * et_x2(0) + et_x2(1) * et_x2(1);
+  // denominator > 0 unless E x1 and E^T x2 both vanish (x1 at an epipole).
+  using std::sqrt;
+  return numerator / sqrt(denominator + T(1e-30));
+}
+
+Mat3 EssentialFromPose(const SE3& cam2_from_cam1) {
+  return Hat(cam2_from_cam1.translation()) * cam2_from_cam1.RotationMatrix();
+}
+
+// Residual of one correspondence for the (R, t) refinement: q is an Eigen
+// quaternion (x, y, z, w) and t a unit 3-vector; E = [t]_x R.
+struct SampsonCost {
+  SampsonCost(const Vec2& x1, const Vec2& x2) : x1_(x1), x2_(x2) {}
+  template <typename T>
+  bool operator()(const T* q, const T* t, T* residual) const {
+    const Eigen::Map<const Eigen::Quaternion<T>> rotation(q);
+    const Eigen::Matrix<T, 3, 1> translation(t[0], t[1], t[2]);
+    Eigen::Matrix<T, 3, 3> tx;
+    tx << T(0), -translation(2), translation(1), translation(2), T(0),
+        -translation(0), -translation(1), translation(0), T(0);
+    const Eigen::Matrix<T, 3, 3> E = tx * rotation.toRotationMatrix();
+    residual[0] = SampsonResidual<T>(E, x1_, x2_);
+    return true;
+  }
+  static ceres::CostFunction* Create(const Vec2& x1, const Vec2& x2) {
+    return new ceres::AutoDiffCostFunction<SampsonCost, 1, 4, 3>(
+        new SampsonCost(x1, x2));
+  }
+  Vec2 x1_, x2_;
+};
+
+// Robust least-squares polish of cam2_from_cam1 (|t| = 1) on the Sampson
+// error of the given correspondences. The Cauchy scale is a quarter of the
+// inlier threshold (1 px at the defaults, about the keypoint noise), so that
+// wrong matches that slipped under the threshold barely pull the pose.
+SE3 RefineRelativePose(const SE3& initial,
+                       const std::vector<Vec2>& x1,
+                       const std::vector<Vec2>& x2,
+                       double threshold) {
+  Quat q = initial.rotation();
+  Vec3 t = initial.translation().normalized();
+  ceres::Problem problem;
+  for (size_t i = 0; i < x1.size(); ++i) {
+    problem.AddResidualBlock(SampsonCost::Create(x1[i], x2[i]),
+                             new ceres::CauchyLoss(0.25 * threshold),
+                             q.coeffs().data(),
+                             t.data());
+  }
+  problem.SetManifold(q.coeffs().data(), new ceres::EigenQuaternionManifold);
+  problem.SetManifold(t.data(), new ceres::SphereManifold<3>);
+  ceres::Solver::Options solver_options;
+  solver_options.linear_solver_type =
+      ceres::DENSE_NORMAL_CHOLESKY;  // 7 parameters
+  solver_options.max_num_iterations = 30;
+  solver_options.num_threads = 1;
+  solver_options.logging_type = ceres::SILENT;
+  solver_options.minimizer_progress_to_stdout = false;
+  ceres::Solver::Summary summary;
+  ceres::Solve(solver_options, &problem, &summary);
+  if (!summary.IsSolutionUsable()) return initial;
+  return SE3(q.normalized(), t.normalized());
+}
+
+// Ray angle (rad) between R x1 and x2, used when the two centres coincide.
+double RayAngle(const Mat3& R, const Vec2& x1, const Vec2& x2) {
+  const Vec3 r1 = R * x1.homogeneous();
+  const Vec3 r2 = x2.homogeneous();
+  return std::atan2(r1.cross(r2).norm(), r1.dot(r2));
+}
+
+// Indices (into x1/x2) of the correspondences consistent with a known pose.
+std::vector<size_t> ConsistentMatches(const SE3& cam2_from_cam1,
+                                      const std::vector<Vec2>& x1,
+                                      const std::vector<Vec2>& x2,
+                                      double threshold) {
+  std::vector<size_t> kept;
+  const double baseline = cam2_from_cam1.translation().norm();
+  const Mat3 R = cam2_from_cam1.RotationMatrix();
+  if (baseline < 1e-12) {
+    for (size_t i = 0; i < x1.size(); ++i) {
+      if (RayAngle(R, x1[i], x2[i]) <= threshold) kept.push_back(i);
+    }
+    return kept;
+  }
+  const Mat3 E = EssentialFromPose(cam2_from_cam1);
+  for (size_t i = 0; i < x1.size(); ++i) {
+    if (std::abs(SampsonResidual<double>(E, x1[i], x2[i])) <= threshold)
+      kept.push_back(i);
+  }
+  return kept;
+}
+
+enum class PairKind { kEstimate, kKnownPose };
+
+struct PairJob {
+  image_t image_id1 = kInvalidImageId;
+  image_t image_id2 = kInvalidImageId;
+  PairKind kind = PairKind::kEstimate;
+  SE3 known_cam2_from_cam1;  // kKnownPose only
+  bool metric = false;
+  double threshold = 0.0;  // normalised-plane units
+  std::vector<std::pair<point2D_t, point2D_t>> matches;
+  std::vector<Vec2> x1, x2;
+};
+
+// Result of one pair: an edge, or nothing when too few inliers remain.
+std::optional<ViewGraphEdge> ProcessPair(const PairJob& job,
+                                         const ViewGraphOptions& options) {
+  ViewGraphEdge edge;
+  edge.image_id1 = job.image_id1;
+  edge.image_id2 = job.image_id2;
+  std::vector<size_t> kept;
+  if (job.kind == PairKind::kKnownPose) {
+    edge.cam2_from_cam1 = job.known_cam2_from_cam1;
+    edge.metric = job.metric;
+    kept = ConsistentMatches(
+        job.known_cam2_from_cam1, job.x1, job.x2, job.threshold);
+  } else {
+    // RANSAC and the cheirality vote run on at most ransac_max_num_matches
+    // matches (an even stride through the list; deterministic), the
+    // refinement and the final inlier test on all of them.
+    const size_t num_matches = job.x1.size();
+    const size_t num_samples = std::min(
+        num_matches, static_cast<size_t>(options.ransac_max_num_matches));
+    const int n = static_cast<int>(num_samples);
+    cv::Mat points1(n, 2, CV_64F), points2(n, 2, CV_64F);
+    for (int i = 0; i < n; ++i) {
+      const size_t k = static_cast<size_t>(i) * num_matches / num_samples;
+      points1.at<double>(i, 0) = job.x1[k].x();
+      points1.at<double>(i, 1) = job.x1[k].y();
+      points2.at<double>(i, 0) = job.x2[k].x();
+      points2.at<double>(i, 1) = job.x2[k].y();
+    }
+    const cv::Mat identity = cv::Mat::eye(3, 3, CV_64F);
+    cv::Mat mask;
+    cv::Mat E = cv::findEssentialMat(points1,
+                                     points2,
+                                     identity,
+                                     cv::USAC_ACCURATE,
+                                     options.ransac_confidence,
+                                     job.threshold,
+                                     options.ransac_max_iterations,
+                                     mask);
+    if (E.rows < 3 || E.cols != 3 || mask.empty()) return std::nullopt;
+    E = E.rowRange(0, 3).clone();
+    cv::Mat R_cv, t_cv, triangulated;
+    cv::Mat pose_mask = mask.clone();
+    // Points beyond 1000 baselines count as "at infinity" (COLMAP's
+    // cheirality test uses the same bound); they vote for no hypothesis.
+    const int num_cheiral = cv::recoverPose(E,
+                                            points1,
+                                            points2,
+                                            identity,
+                                            R_cv,
+                                            t_cv,
+                                            1000.0,
+                                            pose_mask,
+                                            triangulated);
+    if (num_cheiral < 5) return std::nullopt;
+    Mat3 R;
+    Vec3 t;
+    for (int r = 0; r < 3; ++r) {
+      t(r) = t_cv.at<double>(r, 0);
+      for (int c = 0; c < 3; ++c) R(r, c) = R_cv.at<double>(r, c);
+    }
+    SE3 cam2_from_cam1(Quat(R).normalized(), t.normalized());
+    if (options.refine_relative_poses) {
+      // At most refine_max_num_matches of them (even stride): beyond a few
+      // thousand matches the pose no longer improves, the time does grow.
+      const std::vector<size_t> consistent =
+          ConsistentMatches(cam2_from_cam1, job.x1, job.x2, job.threshold);
+      const size_t num_refine =
+          std::min(consistent.size(),
+                   static_cast<size_t>(options.refine_max_num_matches));
+      std::vector<Vec2> in1, in2;
+      for (size_t j = 0; j < num_refine; ++j) {
+        const size_t i = consistent[j * consistent.size() / num_refine];
+        in1.push_back(job.x1[i]);
+        in2.push_back(job.x2[i]);
+      }
+      cam2_from_cam1 =
+          RefineRelativePose(cam2_from_cam1, in1, in2, job.threshold);
+    }
+    edge.cam2_from_cam1 = cam2_from_cam1;
+    edge.metric = false;
+    kept = ConsistentMatches(cam2_from_cam1, job.x1, job.x2, job.threshold);
+  }
+  if (static_cast<int>(kept.size()) < options.min_num_inliers)
+    return std::nullopt;
+  edge.inliers.reserve(kept.size());
+  for (size_t i : kept) edge.inliers.push_back(job.matches[i]);
+  edge.weight = static_cast<double>(kept.size());
+  edge.valid = true;
+  return edge;
+}
+
+bool IsUsableConfig(int config) {
+  switch (static_cast<TwoViewConfig>(config)) {
+    case TwoViewConfig::kCalibrated:
+    case TwoViewConfig::kUncalibrated:
+    case TwoViewConfig::kPlanar:
+    case TwoViewConfig::kPanoramic:
+    case TwoViewConfig::kPlanarOrPanoramic:
+      return true;
+    default:
+      return false;
+  }
+}
+
+}  // namespace
+
+ViewGraphStats BuildViewGraph(const Database& database,
+                              const ViewGraphOptions& options,
+                              MapperState* state) {
+  THROW_CHECK(state != nullptr);
+  THROW_CHECK_MSG(options.Check(), "invalid ViewGraphOptions");
+  const auto start = std::chrono::steady_clock::now();
+  ViewGraphStats stats;
+
+  const auto geometries = database.ReadAllTwoViewGeometries();
+  stats.num_pairs_in_database = geometries.size();
+  if (geometries.empty()) {
+    throw InputError(
+        database.path(),
+        "table two_view_geometries",
+        "expected at least one image pair with a two-view geometry, found none "
+        "(run colmap exhaustive_matcher or matches_importer first)");
+  }
+  std::unordered_map<image_pair_t, size_t> num_raw_matches;
+  for (const auto& [pair_id, matches] : database.ReadAllMatches()) {
+    num_raw_matches[pair_id] = static_cast<size_t>(matches.rows());
+  }
+
+  std::vector<PairJob> jobs;
+  jobs.reserve(geometries.size());
+  for (const auto& [pair_id, geometry] : geometries) {
+    image_t image_id1 = kInvalidImageId, image_id2 = kInvalidImageId;
+    PairIdToImagePair(pair_id, &image_id1, &image_id2);
+    const auto it1 = state->images.find(image_id1);
+    const auto it2 = state->images.find(image_id2);
+    if (it1 == state->images.end() || it2 == state->images.end()) {
+      ++stats.num_skipped_unknown_images;
+      continue;
+    }
+    if (state->view_graph.edge_index.count(pair_id) > 0)
+      continue;  // already an edge
+    if (!IsUsableConfig(geometry.config)) {
+      ++stats.num_skipped_config;
+      continue;
+    }
+    const size_t num_inliers =
+        static_cast<size_t>(geometry.inlier_matches.rows());
+    const auto raw_it = num_raw_matches.find(pair_id);
+    const double ratio =
+        (raw_it == num_raw_matches.end() || raw_it->second == 0)
+            ? 1.0
+            : std::min(1.0, static_cast<double>(num_inliers) / raw_it->second);
+    if (static_cast<int>(num_inliers) < options.min_num_inliers ||
+        ratio < options.min_inlier_ratio) {
+      ++stats.num_rejected_few_inliers;
+      continue;
+    }
+    const SfmImage& image1 = it1->second;
+    const SfmImage& image2 = it2->second;
+    PairJob job;
+    job.image_id1 = image_id1;
+    job.image_id2 = image_id2;
+    job.matches.reserve(num_inliers);
+    job.x1.reserve(num_inliers);
+    job.x2.reserve(num_inliers);
+    for (size_t i = 0; i < num_inliers; ++i) {
+      const point2D_t idx1 = geometry.inlier_matches(i, 0);
+      const point2D_t idx2 = geometry.inlier_matches(i, 1);
+      if (idx1 >= image1.normalized.size() ||
+          idx2 >= image2.normalized.size()) {
+        throw InputError(
+            database.path(),
+            "two_view_geometries pair_id " + std::to_string(pair_id),
+            "expected inlier matches within the keypoints of images " +
+                std::to_string(image_id1) + " (" +
+                std::to_string(image1.normalized.size()) + ") and " +
+                std::to_string(image_id2) + " (" +
+                std::to_string(image2.normalized.size()) + "), found match (" +
+                std::to_string(idx1) + ", " + std::to_string(idx2) + ")");
+      }
+      job.matches.emplace_back(idx1, idx2);
+      job.x1.push_back(image1.normalized[idx1]);
+      job.x2.push_back(image2.normalized[idx2]);
+    }
+    const double focal =
+        0.5 * (state->cameras.at(image1.camera_id).MeanFocalLength() +
+               state->cameras.at(image2.camera_id).MeanFocalLength());
+    THROW_CHECK_GT(focal, 0.0);
+    job.threshold = options.max_error_px / focal;
+    if (image1.frame_id == image2.frame_id) {
+      // Same rig frame: cam2_from_cam1 = cam2_from_rig * rig_from_cam1
+      // (metric).
+      job.kind = PairKind::kKnownPose;
+      job.metric = true;
+      job.known_cam2_from_cam1 =
+          state->cam_from_rig.at(image2.camera_id) *
+          state->cam_from_rig.at(image1.camera_id).Inverse();
+    } else if (!options.reestimate_relative_poses &&
+               geometry.tvec.norm() > 0.0) {
+      job.kind = PairKind::kKnownPose;
+      const Quat q(geometry.qvec(0),
+                   geometry.qvec(1),
+                   geometry.qvec(2),
+                   geometry.qvec(3));
+      job.known_cam2_from_cam1 =
+          SE3(q.normalized(), geometry.tvec.normalized());
+    }
+    jobs.push_back(std::move(job));
+  }
+
+  std::vector<std::optional<ViewGraphEdge>> results(jobs.size());
+  tbb::task_arena arena(options.num_threads > 0 ? options.num_threads
+                                                : tbb::task_arena::automatic);
+  arena.execute([&] {
+    tbb::parallel_for(size_t{0}, jobs.size(), [&](size_t i) {
+      results[i] = ProcessPair(jobs[i], options);
+    });
+  });
+
+  for (size_t i = 0; i < jobs.size(); ++i) {
+    if (!results[i]) {
+      ++stats.num_rejected_reestimation;
+      continue;
+    }
+    const bool intra = state->images.at(jobs[i].image_id1).frame_id ==
+                       state->images.at(jobs[i].image_id2).frame_id;
+    if (intra) ++stats.num_intra_frame_edges;
+    stats.num_inlier_matches += results[i]->inliers.size();
+    state->view_graph.AddEdge(std::move(*results[i]));
+    ++stats.num_edges;
+  }
+  stats.seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start)
+          .count();
+  LogInfo(
+      "View graph: {} pairs in the database, {} edges ({} within a rig frame), "
+      "skipped {} (unknown images) + {} (config), rejected {} (few inliers) + "
+      "{} "
+      "(re-estimation), {} inlier matches, {:.2f} s",
+      stats.num_pairs_in_database,
+      stats.num_edges,
+      stats.num_intra_frame_edges,
+      stats.num_skipped_unknown_images,
+      stats.num_skipped_config,
+      stats.num_rejected_few_inliers,
+      stats.num_rejected_reestimation,
+      stats.num_inlier_matches,
+      stats.seconds);
+  return stats;
+}
+
+std::vector<std::vector<frame_t>> FrameComponents(const MapperState& state) {
+  // Union-find over frame indices.
+  std::vector<frame_t> ids;
+  std::unordered_map<frame_t, size_t> index;
+  for (const auto& [frame_id, frame] : state.frames) {
+    index[frame_id] = ids.size();
+    ids.push_back(frame_id);
+  }
+  std::vector<size_t> parent(ids.size());
+  std::iota(parent.begin(), parent.end(), size_t{0});
+  auto find = [&](size_t x) {
+    while (parent[x] != x) {
+      parent[x] = parent[parent[x]];
+      x = parent[x];
+    }
+    return x;
+  };
+  auto unite = [&](frame_t a, frame_t b) {
+    const auto ia = index.find(a);
+    const auto ib = index.find(b);
+    if (ia == index.end() || ib == index.end()) return;
+    const size_t ra = find(ia->second), rb = find(ib->second);
+    if (ra != rb) parent[std::max(ra, rb)] = std::min(ra, rb);
+  };
+  for (const ViewGraphEdge& edge : state.view_graph.edges) {
+    if (!edge.valid) continue;
+    const auto it1 = state.images.find(edge.image_id1);
+    const auto it2 = state.images.find(edge.image_id2);
+    if (it1 == state.images.end() || it2 == state.images.end()) continue;
+    if (it1->second.frame_id == it2->second.frame_id) continue;
+    unite(it1->second.frame_id, it2->second.frame_id);
+  }
+  for (const LidarConstraint& constraint : state.lidar_constraints) {
+    unite(constraint.frame_id1, constraint.frame_id2);
+  }
+  std::unordered_map<size_t, size_t> component_of_root;
+  std::vector<std::vector<frame_t>> components;
+  for (size_t i = 0; i < ids.size(); ++i) {  // ids ascend (std::map order)
+    const size_t root = find(i);
+    auto [it, inserted] = component_of_root.emplace(root, components.size());
+    if (inserted) components.emplace_back();
+    components[it->second].push_back(ids[i]);
+  }
+  std::stable_sort(
+      components.begin(),
+      components.end(),
+      [](const std::vector<frame_t>& a, const std::vector<frame_t>& b) {
+        return a.size() > b.size();
+      });
+  return components;
+}
+
+}  // namespace colmap
+}  // namespace lisfm
