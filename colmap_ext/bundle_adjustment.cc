@@ -107,7 +107,7 @@ ceres::CostFunction* MakeReprojectionCost(int model_id,
     using Model = decltype(model);
     if (refine_cam_from_rig)
       return RigReprojectionErrorFunctor<Model>::Create(observed);
-    return ReprojectionErrorFunctor<Model>::Create(
+    return new AnalyticReprojectionCost<Model>(
         observed, cam_from_rig.rotation(), cam_from_rig.translation());
   });
 }

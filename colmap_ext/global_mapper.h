@@ -62,7 +62,7 @@ struct GlobalMapperOptions {
   bool final_full_bundle_adjustment = true;
   // Iteration cap of that final full adjustment (it starts from the
   // subsampled optimum).
-  int final_max_num_iterations = 10;
+  int final_max_num_iterations = 5;
   // Components with fewer frames are not reconstructed.
   int min_component_frames = 2;
   // Reconstruct every component (COLMAP writes one model per component);

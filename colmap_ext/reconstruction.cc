@@ -67,11 +67,11 @@ void Reconstruction::AddPoint3D(point3D_t point3D_id, Point3D point) {
   THROW_CHECK_MSG(!ExistsPoint3D(point3D_id), "duplicate point3D id " << point3D_id);
   point_index_.emplace(point3D_id, points3D_.size());
   points3D_.emplace_back(point3D_id, std::move(point));
+  max_point3D_id_ = std::max(max_point3D_id_, point3D_id);
 }
 
 point3D_t Reconstruction::AddPoint3DWithTrack(Point3D point) {
-  point3D_t id = 1;
-  for (const auto& p : points3D_) id = std::max(id, p.first + 1);
+  const point3D_t id = max_point3D_id_ + 1;
   for (const TrackElement& el : point.track) {
     Image& image = GetImage(el.image_id);
     THROW_CHECK_LT(el.point2D_idx, image.points2D.size());

@@ -171,6 +171,7 @@ class Reconstruction {
   std::unordered_map<camera_t, size_t> camera_index_;
   std::unordered_map<image_t, size_t> image_index_;
   std::unordered_map<point3D_t, size_t> point_index_;
+  point3D_t max_point3D_id_ = 0;  // largest id added (AddPoint3DWithTrack uses max + 1)
   std::vector<ModelRig> rigs_;
   std::vector<ModelFrame> frames_;
 };
