@@ -178,6 +178,26 @@ TEST(GlobalMapper, DatabaseWithoutTwoViewGeometriesIsAnInputError) {
   EXPECT_THROW(RunGlobalMapper(database, nullptr, {}, "", {}), InputError);
 }
 
+TEST(GlobalMapper, CameraWithoutUsableIntrinsicsIsAnInputError) {
+  test::TempDir dir;
+  SyntheticSfmOptions o;
+  o.num_frames = 4;
+  WriteSyntheticSfmDatabase(o, dir.File("db.db"));
+  {
+    Database database(dir.File("db.db"), Database::OpenMode::kReadWrite);
+    Camera camera = database.ReadAllCameras().front();
+    camera.params[0] = 0.0;  // focal length 0
+    database.UpdateCamera(camera);
+  }
+  const Database database(dir.File("db.db"), Database::OpenMode::kReadOnly);
+  try {
+    RunGlobalMapper(database, nullptr, {}, "", {});
+    FAIL() << "expected an InputError";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("camera_id=1"), std::string::npos) << e.what();
+  }
+}
+
 TEST(GlobalMapper, RigThatLacksACameraOfTheDatabaseIsAnInputError) {
   test::TempDir dir;
   SyntheticSfmOptions o;

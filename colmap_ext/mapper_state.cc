@@ -96,10 +96,14 @@ void CheckCamera(const Database& database, const Camera& camera) {
   if (camera.width == 0 || camera.height == 0) {
     throw InputError(database.path(), where, "image size is 0");
   }
-  const double f = camera.MeanFocalLength();
-  if (!(f > 0) || !std::isfinite(f)) {
-    throw InputError(database.path(), where,
-                     "focal length must be positive, found " + std::to_string(f));
+  // Every focal length (f, or fx and fy) must be positive.
+  const bool single_focal = CameraModelParamsInfo(camera.model_id).rfind("f,", 0) == 0;
+  for (int i = 0; i < (single_focal ? 1 : 2); ++i) {
+    if (!(camera.params[i] > 0)) {
+      throw InputError(database.path(), where,
+                       "focal length must be positive, found " +
+                           std::to_string(camera.params[i]));
+    }
   }
 }
 
