@@ -5,6 +5,7 @@
 #include <regex>
 
 #include <opencv2/imgcodecs.hpp>
+#include <tbb/parallel_for.h>
 
 #include "core/errors.h"
 #include "core/logging.h"
@@ -297,13 +298,20 @@ Reconstruction ToReconstruction(const MapperState& state, const std::string& ima
   std::vector<Vec3> color_sum(state.tracks.size(), Vec3::Zero());
   std::vector<int> color_count(state.tracks.size(), 0);
   if (!image_path.empty()) {
+    // Decoding the images dominates: in parallel, one colour sample list per
+    // image, summed in image order afterwards (deterministic).
+    std::vector<const SfmImage*> registered;
     for (const auto& [image_id, sfm_image] : state.images) {
-      if (!state.IsRegistered(image_id)) continue;
+      if (state.IsRegistered(image_id)) registered.push_back(&sfm_image);
+    }
+    std::vector<std::vector<std::pair<int, Vec3>>> samples(registered.size());
+    std::vector<char> unreadable(registered.size(), 0);
+    tbb::parallel_for(size_t{0}, registered.size(), [&](size_t k) {
+      const SfmImage& sfm_image = *registered[k];
       const cv::Mat bgr = cv::imread(image_path + "/" + sfm_image.name, cv::IMREAD_COLOR);
       if (bgr.empty()) {
-        LogWarning("cannot read " + image_path + "/" + sfm_image.name +
-                   " for point colours; they stay black");
-        continue;
+        unreadable[k] = 1;
+        return;
       }
       for (size_t i = 0; i < sfm_image.track_ids.size(); ++i) {
         const int track_id = sfm_image.track_ids[i];
@@ -313,7 +321,16 @@ Reconstruction ToReconstruction(const MapperState& state, const std::string& ima
         const int y = static_cast<int>(std::floor(sfm_image.keypoints[i].y()));
         if (x < 0 || y < 0 || x >= bgr.cols || y >= bgr.rows) continue;
         const cv::Vec3b c = bgr.at<cv::Vec3b>(y, x);
-        color_sum[track_id] += Vec3(c[2], c[1], c[0]);
+        samples[k].emplace_back(track_id, Vec3(c[2], c[1], c[0]));
+      }
+    });
+    for (size_t k = 0; k < registered.size(); ++k) {
+      if (unreadable[k]) {
+        LogWarning("cannot read " + image_path + "/" + registered[k]->name +
+                   " for point colours; they stay black");
+      }
+      for (const auto& [track_id, rgb] : samples[k]) {
+        color_sum[track_id] += rgb;
         ++color_count[track_id];
       }
     }
