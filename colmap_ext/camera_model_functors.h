@@ -27,6 +27,7 @@
 
 #include "colmap_ext/camera_models.h"
 #include "core/errors.h"
+#include "core/geometry.h"
 
 namespace lisfm {
 namespace colmap {
@@ -463,7 +464,7 @@ class AnalyticReprojectionCost
       const Eigen::Vector3d v_cross_x = qv.cross(x);
       Eigen::Matrix<double, 3, 4> d_rx_d_q;
       d_rx_d_q.leftCols<3>() =
-          -2.0 * qw * Hat3(x) +
+          -2.0 * qw * Hat(x) +
           2.0 * (qv.dot(x) * Eigen::Matrix3d::Identity() + qv * x.transpose() -
                  2.0 * x * qv.transpose());
       d_rx_d_q.col(3) = 2.0 * v_cross_x;
@@ -488,12 +489,6 @@ class AnalyticReprojectionCost
   }
 
  private:
-  static Eigen::Matrix3d Hat3(const Eigen::Vector3d& a) {
-    Eigen::Matrix3d m;
-    m << 0.0, -a.z(), a.y(), a.z(), 0.0, -a.x(), -a.y(), a.x(), 0.0;
-    return m;
-  }
-
   Eigen::Vector2d observed_;
   Eigen::Matrix3d cam_from_rig_rotation_;
   Eigen::Vector3d cam_from_rig_translation_;
