@@ -59,9 +59,15 @@ void DropUnregisteredObservations(MapperState* state) {
       }
     }
     track.elements.swap(kept);
-    track.rejected.erase(std::remove_if(track.rejected.begin(), track.rejected.end(),
-                                        [&](const TrackElement& e) { return !keep(e); }),
-                         track.rejected.end());
+    std::vector<TrackElement> kept_rejected;
+    for (const TrackElement& e : track.rejected) {
+      if (keep(e)) {
+        kept_rejected.push_back(e);
+      } else {
+        state->images.at(e.image_id).track_ids[e.point2D_idx] = -1;
+      }
+    }
+    track.rejected.swap(kept_rejected);
     if (track.elements.size() < 2) track.triangulated = false;
   }
 }
