@@ -203,16 +203,21 @@ TEST(LioOdometry, ShortSequenceTwoLidarsMeetsAteBound) {
   EXPECT_LT(ate_livox, 0.05) << "ATE " << ate_livox;
 }
 
-TEST(LioOdometry, StaircaseIsFlaggedDegenerateAndDoesNotDiverge) {
-  test::TempDir dir;
+// The simulated staircase (seed 3, one spinning LiDAR, no cameras).
+Sequence SimulateStaircase(const test::TempDir& dir, double duration) {
   sim::SimulatorOptions options;
   options.scene = "staircase";
-  options.duration = 15.0;
+  options.duration = duration;
   options.camera_rate = 0;
   options.seed = 3;
   options.output_path = dir.File("stairs");
   sim::Simulate(options, sim::PrepareRig(Rig(), "spinning"));
-  const Sequence seq = ReadSequence(options.output_path);
+  return ReadSequence(options.output_path);
+}
+
+TEST(LioOdometry, StaircaseIsFlaggedDegenerateAndDoesNotDiverge) {
+  test::TempDir dir;
+  const Sequence seq = SimulateStaircase(dir, 15.0);
   const LioRun run = RunLio(seq, LioOptions(), {0});
   ASSERT_GT(run.trajectory.size(), 130u);
   const double ate = AteRmse(seq, run.trajectory);
@@ -232,14 +237,7 @@ TEST(LioOdometry, StaircaseIsFlaggedDegenerateAndDoesNotDiverge) {
 // cannot be absorbed.
 TEST(LioOdometry, StaircaseClimbKeepsItsHeight) {
   test::TempDir dir;
-  sim::SimulatorOptions options;
-  options.scene = "staircase";
-  options.duration = 22.0;
-  options.camera_rate = 0;
-  options.seed = 3;
-  options.output_path = dir.File("stairs");
-  sim::Simulate(options, sim::PrepareRig(Rig(), "spinning"));
-  const Sequence seq = ReadSequence(options.output_path);
+  const Sequence seq = SimulateStaircase(dir, 22.0);
   const LioRun run = RunLio(seq, LioOptions(), {0});
   ASSERT_GT(run.trajectory.size(), 200u);
   const Trajectory gt = ReadTum(seq.groundtruth_path);
