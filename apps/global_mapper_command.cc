@@ -73,6 +73,9 @@ int RunGlobalMapper(int argc, char** argv) {
   options.AddBool("ViewGraph.reestimate_relative_poses",
                   &mapper.view_graph.reestimate_relative_poses,
                   "re-estimate relative poses (5-point RANSAC) from the inlier matches");
+  options.AddBool("ViewGraph.use_database_essential",
+                  &mapper.view_graph.use_database_essential,
+                  "CALIBRATED pairs: start from the database's E instead of a new RANSAC");
   // Rotation / translation averaging.
   options.AddDouble("RotationAveraging.max_rotation_error_deg",
                     &mapper.rotation_averaging.max_rotation_error_deg,
@@ -116,6 +119,10 @@ int RunGlobalMapper(int argc, char** argv) {
                     "relative cost change that stops the adjustment");
   options.AddInt("BundleAdjustment.max_num_iterations",
                  &mapper.bundle_adjustment.max_num_iterations, "Levenberg-Marquardt iterations");
+  options.AddChoice("BundleAdjustment.solver", &mapper.bundle_adjustment.solver,
+                    {"auto", "ceres", "schur"},
+                    "auto: lisfm's dense-Schur LM up to 50 frames (no cam_from_rig "
+                    "refinement), Ceres otherwise");
   if (!options.Parse(argc, argv)) return 0;
   mapper.view_graph.num_threads = num_threads;
   mapper.translation_averaging.num_threads = num_threads;

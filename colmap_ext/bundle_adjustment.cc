@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "colmap_ext/camera_model_functors.h"
+#include "colmap_ext/schur_bundle_adjuster.h"
 #include "core/errors.h"
 #include "core/logging.h"
 
@@ -163,6 +164,326 @@ std::vector<char> SelectTracks(const MapperState& state, int max_tracks_per_imag
   return selected;
 }
 
+struct PositionPrior {
+  frame_t frame_id;
+  Vec3 position;
+  Mat3 sqrt_information;
+};
+struct RotationPrior {
+  frame_t frame_id;
+  Quat rig_from_world;
+  double sigma;
+};
+struct LidarTerm {
+  frame_t frame_id1;
+  frame_t frame_id2;
+  SE3 rig1_from_rig2;
+  Mat6 sqrt_information;
+};
+
+// Everything both solvers need: the residuals (validated) and the gauge.
+struct BaSpec {
+  const std::vector<Observation>* observations = nullptr;  // grouped by track
+  const std::set<size_t>* track_set = nullptr;
+  const std::set<frame_t>* frame_set = nullptr;
+  const std::set<camera_t>* camera_set = nullptr;
+  std::map<camera_t, std::vector<int>> constant_params;  // sorted indices
+  std::vector<PositionPrior> position_priors;
+  std::vector<RotationPrior> rotation_priors;
+  std::vector<LidarTerm> lidar_terms;
+  bool first_frame_fixed = false;  // gauge: first frame held
+  frame_t scale_frame = 0;         // gauge: this frame's translation
+  int scale_coordinate = -1;       //   coordinate held (-1: none)
+};
+
+int NumThreads(const BundleAdjustmentOptions& options) {
+  return options.num_threads > 0
+             ? options.num_threads
+             : std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
+}
+
+void SolveWithCeres(const BundleAdjustmentOptions& options,
+                    const BaSpec& spec,
+                    std::chrono::steady_clock::time_point start,
+                    MapperState* state,
+                    BundleAdjustmentStats* stats) {
+  std::map<frame_t, PoseBlock> frame_blocks;
+  for (frame_t frame_id : *spec.frame_set) {
+    frame_blocks.emplace(frame_id, PoseBlock(state->frames.at(frame_id).rig_from_world));
+  }
+  const bool refine_rig = state->has_rig && options.refine_cam_from_rig;
+  const camera_t reference_camera = *spec.camera_set->begin();
+  std::map<camera_t, PoseBlock> rig_blocks;
+  if (refine_rig) {
+    for (camera_t camera_id : *spec.camera_set) {
+      if (camera_id == reference_camera)
+        continue;  // stays constant (functor member)
+      rig_blocks.emplace(camera_id, PoseBlock(CamFromRig(*state, camera_id)));
+    }
+  }
+
+  ceres::Problem::Options problem_options;
+  problem_options.loss_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
+  problem_options.manifold_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
+  ceres::Problem problem(problem_options);
+  std::unique_ptr<ceres::LossFunction> loss(MakeLoss(options));
+  ceres::EigenQuaternionManifold quaternion_manifold;
+  std::vector<std::unique_ptr<ceres::Manifold>> owned_manifolds;
+
+  for (const Observation& obs : *spec.observations) {
+    const SfmImage& image = state->images.at(obs.image_id);
+    Camera& camera = state->cameras.at(image.camera_id);
+    PoseBlock& frame = frame_blocks.at(image.frame_id);
+    Track& track = state->tracks[obs.track_idx];
+    const Vec2& observed = image.keypoints[obs.point2D_idx];
+    const bool refine_this_rig = refine_rig && image.camera_id != reference_camera;
+    ceres::CostFunction* cost = MakeReprojectionCost(
+        camera.model_id, observed, CamFromRig(*state, image.camera_id), refine_this_rig);
+    if (refine_this_rig) {
+      PoseBlock& rig = rig_blocks.at(image.camera_id);
+      problem.AddResidualBlock(cost, loss.get(), rig.q.data(), rig.t.data(), frame.q.data(),
+                               frame.t.data(), track.xyz.data(), camera.params.data());
+    } else {
+      problem.AddResidualBlock(cost, loss.get(), frame.q.data(), frame.t.data(),
+                               track.xyz.data(), camera.params.data());
+    }
+  }
+  for (auto& [frame_id, block] : frame_blocks) {
+    problem.SetManifold(block.q.data(), &quaternion_manifold);
+  }
+  for (auto& [camera_id, block] : rig_blocks) {
+    problem.SetManifold(block.q.data(), &quaternion_manifold);
+  }
+  // Intrinsics: hold the groups that are not refined.
+  for (camera_t camera_id : *spec.camera_set) {
+    Camera& camera = state->cameras.at(camera_id);
+    const std::vector<int>& constant = spec.constant_params.at(camera_id);
+    const int num_params = static_cast<int>(camera.params.size());
+    if (static_cast<int>(constant.size()) == num_params) {
+      problem.SetParameterBlockConstant(camera.params.data());
+    } else if (!constant.empty()) {
+      owned_manifolds.push_back(std::make_unique<ceres::SubsetManifold>(num_params, constant));
+      problem.SetManifold(camera.params.data(), owned_manifolds.back().get());
+    }
+  }
+  for (const PositionPrior& prior : spec.position_priors) {
+    PoseBlock& block = frame_blocks.at(prior.frame_id);
+    problem.AddResidualBlock(
+        PositionPriorFunctor::Create(prior.position, prior.sqrt_information), nullptr,
+        block.q.data(), block.t.data());
+  }
+  for (const RotationPrior& prior : spec.rotation_priors) {
+    PoseBlock& block = frame_blocks.at(prior.frame_id);
+    problem.AddResidualBlock(RotationPriorFunctor::Create(prior.rig_from_world, prior.sigma),
+                             nullptr, block.q.data());
+  }
+  for (const LidarTerm& term : spec.lidar_terms) {
+    PoseBlock& b1 = frame_blocks.at(term.frame_id1);
+    PoseBlock& b2 = frame_blocks.at(term.frame_id2);
+    problem.AddResidualBlock(
+        RelativePoseFunctor::Create(term.rig1_from_rig2, term.sqrt_information), nullptr,
+        b1.q.data(), b1.t.data(), b2.q.data(), b2.t.data());
+  }
+  // Gauge.
+  if (!options.refine_frame_poses) {
+    for (auto& [frame_id, block] : frame_blocks) {
+      problem.SetParameterBlockConstant(block.q.data());
+      problem.SetParameterBlockConstant(block.t.data());
+    }
+  } else {
+    if (spec.first_frame_fixed) {
+      PoseBlock& first = frame_blocks.begin()->second;
+      problem.SetParameterBlockConstant(first.q.data());
+      problem.SetParameterBlockConstant(first.t.data());
+    }
+    if (spec.scale_coordinate >= 0) {
+      PoseBlock& far = frame_blocks.at(spec.scale_frame);
+      owned_manifolds.push_back(std::make_unique<ceres::SubsetManifold>(
+          3, std::vector<int>{spec.scale_coordinate}));
+      problem.SetManifold(far.t.data(), owned_manifolds.back().get());
+    }
+  }
+  // Solver.
+  ceres::Solver::Options solver_options;
+  const bool dense = static_cast<int>(frame_blocks.size()) <= options.dense_schur_max_frames;
+  if (dense) {
+    solver_options.linear_solver_type = ceres::DENSE_SCHUR;
+  } else if (ceres::IsSparseLinearAlgebraLibraryTypeAvailable(ceres::SUITE_SPARSE)) {
+    solver_options.linear_solver_type = ceres::SPARSE_SCHUR;
+    solver_options.sparse_linear_algebra_library_type = ceres::SUITE_SPARSE;
+  } else if (ceres::IsSparseLinearAlgebraLibraryTypeAvailable(ceres::EIGEN_SPARSE)) {
+    solver_options.linear_solver_type = ceres::SPARSE_SCHUR;
+    solver_options.sparse_linear_algebra_library_type = ceres::EIGEN_SPARSE;
+  } else {
+    solver_options.linear_solver_type = ceres::ITERATIVE_SCHUR;
+    solver_options.preconditioner_type = ceres::SCHUR_JACOBI;
+  }
+  auto ordering = std::make_shared<ceres::ParameterBlockOrdering>();
+  for (size_t k : *spec.track_set) ordering->AddElementToGroup(state->tracks[k].xyz.data(), 0);
+  std::vector<double*> blocks;
+  problem.GetParameterBlocks(&blocks);
+  for (double* block : blocks) {
+    if (!ordering->IsMember(block)) ordering->AddElementToGroup(block, 1);
+  }
+  solver_options.linear_solver_ordering = ordering;
+  solver_options.max_num_iterations = options.max_num_iterations;
+  solver_options.function_tolerance = options.function_tolerance;
+  solver_options.gradient_tolerance = options.gradient_tolerance;
+  solver_options.parameter_tolerance = options.parameter_tolerance;
+  solver_options.num_threads = NumThreads(options);
+  solver_options.minimizer_progress_to_stdout = options.verbose;
+  solver_options.logging_type = options.verbose ? ceres::PER_MINIMIZER_ITERATION : ceres::SILENT;
+
+  ceres::Solver::Summary summary;
+  const auto solve_start = std::chrono::steady_clock::now();
+  stats->setup_seconds = std::chrono::duration<double>(solve_start - start).count();
+  ceres::Solve(solver_options, &problem, &summary);
+  stats->ceres_seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - solve_start).count();
+  stats->linear_solver_seconds = summary.linear_solver_time_in_seconds;
+  stats->evaluation_seconds =
+      summary.residual_evaluation_time_in_seconds + summary.jacobian_evaluation_time_in_seconds;
+  stats->initial_cost = summary.initial_cost;
+  stats->final_cost = summary.final_cost;
+  stats->num_iterations = static_cast<int>(summary.iterations.size());
+  stats->converged = summary.termination_type == ceres::CONVERGENCE;
+  stats->usable = summary.IsSolutionUsable();
+  stats->termination = ceres::TerminationTypeToString(summary.termination_type) +
+                       std::string(": ") + summary.message;
+  stats->linear_solver = ceres::LinearSolverTypeToString(summary.linear_solver_type_used);
+
+  // Write back (camera params and points were optimised in place).
+  for (const auto& [frame_id, block] : frame_blocks) {
+    state->frames.at(frame_id).rig_from_world = block.ToSE3();
+  }
+  for (const auto& [camera_id, block] : rig_blocks) {
+    state->cam_from_rig[camera_id] = block.ToSE3();
+  }
+}
+
+// The same problem through SolveSchurBundleAdjustment (schur_bundle_adjuster.h).
+void SolveWithSchur(const BundleAdjustmentOptions& options,
+                    const BaSpec& spec,
+                    std::chrono::steady_clock::time_point start,
+                    MapperState* state,
+                    BundleAdjustmentStats* stats) {
+  SchurBaProblem problem;
+  std::map<frame_t, int> frame_index;
+  for (frame_t frame_id : *spec.frame_set) {
+    frame_index[frame_id] = static_cast<int>(problem.frames.size());
+    const SE3& pose = state->frames.at(frame_id).rig_from_world;
+    SchurBaFrame frame;
+    frame.rig_from_world_rotation = pose.rotation();
+    frame.rig_from_world_translation = pose.translation();
+    const bool all_fixed = !options.refine_frame_poses ||
+                           (spec.first_frame_fixed && frame_id == *spec.frame_set->begin());
+    frame.fixed.fill(all_fixed);
+    if (options.refine_frame_poses && spec.scale_coordinate >= 0 && frame_id == spec.scale_frame) {
+      frame.fixed[3 + spec.scale_coordinate] = true;
+    }
+    problem.frames.push_back(frame);
+  }
+  std::map<camera_t, int> camera_index;
+  for (camera_t camera_id : *spec.camera_set) {
+    camera_index[camera_id] = static_cast<int>(problem.cameras.size());
+    const Camera& camera = state->cameras.at(camera_id);
+    SchurBaCamera c;
+    c.model_id = camera.model_id;
+    c.params = camera.params;
+    const std::vector<int>& constant = spec.constant_params.at(camera_id);
+    for (int i = 0; i < static_cast<int>(camera.params.size()); ++i) {
+      if (!std::binary_search(constant.begin(), constant.end(), i)) c.free_indices.push_back(i);
+    }
+    problem.cameras.push_back(std::move(c));
+  }
+  std::map<camera_t, SE3> cam_from_rig;
+  for (camera_t camera_id : *spec.camera_set) cam_from_rig[camera_id] = CamFromRig(*state, camera_id);
+  std::vector<size_t> track_of_point;
+  problem.observations.reserve(spec.observations->size());
+  for (const Observation& obs : *spec.observations) {
+    if (track_of_point.empty() || track_of_point.back() != obs.track_idx) {
+      track_of_point.push_back(obs.track_idx);
+      problem.points.push_back(state->tracks[obs.track_idx].xyz);
+    }
+    const SfmImage& image = state->images.at(obs.image_id);
+    SchurBaObservation o;
+    o.frame = frame_index.at(image.frame_id);
+    o.camera = camera_index.at(image.camera_id);
+    o.point = static_cast<int>(problem.points.size()) - 1;
+    o.observed = image.keypoints[obs.point2D_idx];
+    const SE3& c = cam_from_rig.at(image.camera_id);
+    o.cam_from_rig_rotation = c.rotation().normalized().toRotationMatrix();
+    o.cam_from_rig_translation = c.translation();
+    problem.observations.push_back(o);
+  }
+  std::vector<std::unique_ptr<ceres::CostFunction>> costs;
+  for (const PositionPrior& prior : spec.position_priors) {
+    costs.emplace_back(PositionPriorFunctor::Create(prior.position, prior.sqrt_information));
+    problem.pose_terms.push_back(
+        {SchurBaPoseTerm::kPose, costs.back().get(), frame_index.at(prior.frame_id), -1});
+  }
+  for (const RotationPrior& prior : spec.rotation_priors) {
+    costs.emplace_back(RotationPriorFunctor::Create(prior.rig_from_world, prior.sigma));
+    problem.pose_terms.push_back(
+        {SchurBaPoseTerm::kRotation, costs.back().get(), frame_index.at(prior.frame_id), -1});
+  }
+  for (const LidarTerm& term : spec.lidar_terms) {
+    costs.emplace_back(RelativePoseFunctor::Create(term.rig1_from_rig2, term.sqrt_information));
+    problem.pose_terms.push_back({SchurBaPoseTerm::kRelative, costs.back().get(),
+                                  frame_index.at(term.frame_id1), frame_index.at(term.frame_id2)});
+  }
+  SchurBaOptions schur_options;
+  schur_options.loss_type = options.loss_type;
+  schur_options.loss_scale = options.loss_scale;
+  schur_options.max_num_iterations = options.max_num_iterations;
+  schur_options.function_tolerance = options.function_tolerance;
+  schur_options.gradient_tolerance = options.gradient_tolerance;
+  schur_options.parameter_tolerance = options.parameter_tolerance;
+  schur_options.num_threads = NumThreads(options);
+  const auto solve_start = std::chrono::steady_clock::now();
+  stats->setup_seconds = std::chrono::duration<double>(solve_start - start).count();
+  const SchurBaSummary summary = SolveSchurBundleAdjustment(schur_options, &problem);
+  stats->ceres_seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - solve_start).count();
+  stats->linear_solver_seconds = summary.linear_solver_seconds;
+  stats->evaluation_seconds = summary.evaluation_seconds;
+  stats->initial_cost = summary.initial_cost;
+  stats->final_cost = summary.final_cost;
+  stats->num_iterations = summary.num_iterations;
+  stats->converged = summary.converged;
+  stats->usable = std::isfinite(summary.final_cost);
+  stats->termination = summary.termination;
+  stats->linear_solver = "lisfm dense Schur LM";
+
+  for (const auto& [frame_id, f] : frame_index) {
+    state->frames.at(frame_id).rig_from_world =
+        SE3(problem.frames[f].rig_from_world_rotation.normalized(),
+            problem.frames[f].rig_from_world_translation);
+  }
+  for (const auto& [camera_id, c] : camera_index) {
+    state->cameras.at(camera_id).params = problem.cameras[c].params;
+  }
+  for (size_t p = 0; p < track_of_point.size(); ++p) {
+    state->tracks[track_of_point[p]].xyz = problem.points[p];
+  }
+}
+
+// Mean reprojection error of each adjusted track over its registered images.
+void UpdateTrackErrors(const std::set<size_t>& track_set, MapperState* state) {
+  for (size_t k : track_set) {
+    Track& track = state->tracks[k];
+    double sum = 0.0;
+    int count = 0;
+    for (const TrackElement& el : track.elements) {
+      const SfmImage* image = nullptr;
+      if (!ImageIsRegistered(*state, el.image_id, &image)) continue;
+      sum += ObservationError(*state, track, el);
+      ++count;
+    }
+    track.error = count > 0 ? sum / count : -1.0;
+  }
+}
+
 }  // namespace
 
 bool BundleAdjustmentOptions::Check() const {
@@ -172,6 +493,7 @@ bool BundleAdjustmentOptions::Check() const {
          function_tolerance >= 0.0 && gradient_tolerance >= 0.0 &&
          parameter_tolerance >= 0.0 && dense_schur_max_frames >= 0 &&
          max_tracks_per_image >= 0 &&
+         (solver == "auto" || solver == "ceres" || solver == "schur") &&
          (num_threads == -1 || num_threads >= 1);
 }
 
@@ -222,79 +544,15 @@ BundleAdjustmentStats RunBundleAdjustment(
     return stats;
   }
   stats.initial_mean_reprojection_error_px = MeanError(*state, observations);
-
-  // Parameter blocks.
-  std::map<frame_t, PoseBlock> frame_blocks;
-  for (frame_t frame_id : frame_set) {
-    frame_blocks.emplace(frame_id,
-                         PoseBlock(state->frames.at(frame_id).rig_from_world));
-  }
-  const bool refine_rig = state->has_rig && options.refine_cam_from_rig;
-  const camera_t reference_camera = *camera_set.begin();
-  std::map<camera_t, PoseBlock> rig_blocks;
-  if (refine_rig) {
-    for (camera_t camera_id : camera_set) {
-      if (camera_id == reference_camera)
-        continue;  // stays constant (functor member)
-      rig_blocks.emplace(camera_id, PoseBlock(CamFromRig(*state, camera_id)));
-    }
-  }
-
-  ceres::Problem::Options problem_options;
-  problem_options.loss_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
-  problem_options.manifold_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
-  ceres::Problem problem(problem_options);
-  std::unique_ptr<ceres::LossFunction> loss(MakeLoss(options));
-  ceres::EigenQuaternionManifold quaternion_manifold;
-  std::vector<std::unique_ptr<ceres::Manifold>> owned_manifolds;
-
-  for (const Observation& obs : observations) {
-    const SfmImage& image = state->images.at(obs.image_id);
-    Camera& camera = state->cameras.at(image.camera_id);
-    THROW_CHECK_MSG(camera.VerifyParams(),
-                    "camera " << camera.camera_id << " is invalid");
-    PoseBlock& frame = frame_blocks.at(image.frame_id);
-    Track& track = state->tracks[obs.track_idx];
-    const Vec2& observed = image.keypoints[obs.point2D_idx];
-    const bool refine_this_rig =
-        refine_rig && image.camera_id != reference_camera;
-    ceres::CostFunction* cost =
-        MakeReprojectionCost(camera.model_id,
-                             observed,
-                             CamFromRig(*state, image.camera_id),
-                             refine_this_rig);
-    if (refine_this_rig) {
-      PoseBlock& rig = rig_blocks.at(image.camera_id);
-      problem.AddResidualBlock(cost,
-                               loss.get(),
-                               rig.q.data(),
-                               rig.t.data(),
-                               frame.q.data(),
-                               frame.t.data(),
-                               track.xyz.data(),
-                               camera.params.data());
-    } else {
-      problem.AddResidualBlock(cost,
-                               loss.get(),
-                               frame.q.data(),
-                               frame.t.data(),
-                               track.xyz.data(),
-                               camera.params.data());
-    }
-  }
   stats.num_reprojection_residuals = observations.size();
-  for (auto& [frame_id, block] : frame_blocks) {
-    problem.SetManifold(block.q.data(), &quaternion_manifold);
-  }
-  for (auto& [camera_id, block] : rig_blocks) {
-    problem.SetManifold(block.q.data(), &quaternion_manifold);
-  }
 
-  // Intrinsics: hold the groups that are not refined.
+  BaSpec spec;
+  // Intrinsic parameters held constant, per camera.
   for (camera_t camera_id : camera_set) {
-    Camera& camera = state->cameras.at(camera_id);
+    const Camera& camera = state->cameras.at(camera_id);
+    THROW_CHECK_MSG(camera.VerifyParams(), "camera " << camera.camera_id << " is invalid");
     const CameraParamGroups groups = CameraModelParamGroups(camera.model_id);
-    std::vector<int> constant;
+    std::vector<int>& constant = spec.constant_params[camera_id];
     if (!options.refine_focal_length) {
       constant.insert(constant.end(), groups.focal.begin(), groups.focal.end());
     }
@@ -306,24 +564,15 @@ BundleAdjustmentStats RunBundleAdjustment(
     if (!options.refine_extra_params) {
       constant.insert(constant.end(), groups.extra.begin(), groups.extra.end());
     }
-    const int num_params = static_cast<int>(camera.params.size());
-    if (static_cast<int>(constant.size()) == num_params) {
-      problem.SetParameterBlockConstant(camera.params.data());
-    } else {
-      ++stats.num_cameras_refined;
-      if (!constant.empty()) {
-        owned_manifolds.push_back(
-            std::make_unique<ceres::SubsetManifold>(num_params, constant));
-        problem.SetManifold(camera.params.data(), owned_manifolds.back().get());
-      }
-    }
+    std::sort(constant.begin(), constant.end());
+    if (constant.size() < camera.params.size()) ++stats.num_cameras_refined;
   }
 
-  // Pose priors.
-  size_t num_frames_with_position_prior = 0;
-  size_t num_frames_with_rotation_prior = 0;
+  // Pose priors (validated) of the frames in the problem.
+  std::vector<PositionPrior>& position_priors = spec.position_priors;
+  std::vector<RotationPrior>& rotation_priors = spec.rotation_priors;
   if (options.use_priors) {
-    for (auto& [frame_id, block] : frame_blocks) {
+    for (frame_t frame_id : frame_set) {
       const SfmFrame& frame = state->frames.at(frame_id);
       if (frame.has_prior_position) {
         Mat3 sqrt_information;
@@ -335,12 +584,7 @@ BundleAdjustmentStats RunBundleAdjustment(
                            "covariance (m^2), found "
                            "one that is not");
         }
-        problem.AddResidualBlock(PositionPriorFunctor::Create(
-                                     frame.prior_position, sqrt_information),
-                                 nullptr,
-                                 block.q.data(),
-                                 block.t.data());
-        ++num_frames_with_position_prior;
+        position_priors.push_back({frame_id, frame.prior_position, sqrt_information});
       }
       if (frame.has_prior_rotation) {
         if (!(frame.prior_rotation_sigma > 0.0) ||
@@ -350,26 +594,22 @@ BundleAdjustmentStats RunBundleAdjustment(
                            "expected a positive finite sigma (rad), found " +
                                std::to_string(frame.prior_rotation_sigma));
         }
-        problem.AddResidualBlock(
-            RotationPriorFunctor::Create(
-                frame.prior_rig_from_world_rotation.normalized(),
-                frame.prior_rotation_sigma),
-            nullptr,
-            block.q.data());
-        ++num_frames_with_rotation_prior;
+        rotation_priors.push_back({frame_id,
+                                   frame.prior_rig_from_world_rotation.normalized(),
+                                   frame.prior_rotation_sigma});
       }
     }
   }
-  stats.num_position_prior_residuals = num_frames_with_position_prior;
-  stats.num_rotation_prior_residuals = num_frames_with_rotation_prior;
+  stats.num_position_prior_residuals = position_priors.size();
+  stats.num_rotation_prior_residuals = rotation_priors.size();
 
   // LiDAR relative pose constraints between frames in the problem.
+  std::vector<LidarTerm>& lidar_terms = spec.lidar_terms;
   if (options.use_lidar_constraints) {
     for (size_t c = 0; c < state->lidar_constraints.size(); ++c) {
       const LidarConstraint& constraint = state->lidar_constraints[c];
-      const auto it1 = frame_blocks.find(constraint.frame_id1);
-      const auto it2 = frame_blocks.find(constraint.frame_id2);
-      if (it1 == frame_blocks.end() || it2 == frame_blocks.end() ||
+      if (!frame_set.count(constraint.frame_id1) ||
+          !frame_set.count(constraint.frame_id2) ||
           constraint.frame_id1 == constraint.frame_id2) {
         ++stats.num_lidar_constraints_skipped;
         continue;
@@ -382,147 +622,81 @@ BundleAdjustmentStats RunBundleAdjustment(
             "expected a symmetric positive-definite 6x6 covariance, found one "
             "that is not");
       }
-      problem.AddResidualBlock(RelativePoseFunctor::Create(
-                                   constraint.rig1_from_rig2, sqrt_information),
-                               nullptr,
-                               it1->second.q.data(),
-                               it1->second.t.data(),
-                               it2->second.q.data(),
-                               it2->second.t.data());
-      ++stats.num_lidar_residuals;
+      lidar_terms.push_back({constraint.frame_id1, constraint.frame_id2,
+                             constraint.rig1_from_rig2, sqrt_information});
     }
   } else {
     stats.num_lidar_constraints_skipped = state->lidar_constraints.size();
   }
+  stats.num_lidar_residuals = lidar_terms.size();
 
-  // Gauge.
+  // Gauge: which frame pose coordinates are held.
+  const frame_t first_frame = *frame_set.begin();
+  frame_t& scale_frame = spec.scale_frame;
+  int& scale_coordinate = spec.scale_coordinate;
   if (!options.refine_frame_poses) {
-    for (auto& [frame_id, block] : frame_blocks) {
-      problem.SetParameterBlockConstant(block.q.data());
-      problem.SetParameterBlockConstant(block.t.data());
-    }
     stats.gauge = "frame poses constant";
   } else {
-    const bool pose_from_priors = num_frames_with_position_prior >= 3 ||
-                                  (num_frames_with_position_prior >= 1 &&
-                                   num_frames_with_rotation_prior >= 1);
-    const bool scale_fixed =
-        num_frames_with_position_prior >= 2 || stats.num_lidar_residuals > 0;
-    const frame_t first_frame = frame_blocks.begin()->first;
-    PoseBlock& first = frame_blocks.begin()->second;
+    const bool pose_from_priors = position_priors.size() >= 3 ||
+                                  (!position_priors.empty() && !rotation_priors.empty());
+    const bool scale_fixed = position_priors.size() >= 2 || !lidar_terms.empty();
     std::vector<std::string> parts;
     if (pose_from_priors) {
       parts.push_back("pose from priors");
     } else {
-      problem.SetParameterBlockConstant(first.q.data());
-      problem.SetParameterBlockConstant(first.t.data());
+      spec.first_frame_fixed = true;
       parts.push_back("frame " + std::to_string(first_frame) + " fixed");
     }
     if (scale_fixed) {
-      parts.push_back(stats.num_lidar_residuals > 0
-                          ? "metric scale from LiDAR constraints"
-                          : "metric scale from priors");
-    } else if (frame_blocks.size() >= 2) {
+      parts.push_back(!lidar_terms.empty() ? "metric scale from LiDAR constraints"
+                                           : "metric scale from priors");
+    } else if (frame_set.size() >= 2) {
       // The frame farthest from the first one; its largest translation
       // coordinate is held (COLMAP's scale gauge).
-      const Vec3 first_center = first.ToSE3().Inverse().translation();
-      frame_t far_frame = first_frame;
+      const Vec3 first_center =
+          state->frames.at(first_frame).rig_from_world.Inverse().translation();
       double far_distance = -1.0;
-      for (auto& [frame_id, block] : frame_blocks) {
+      for (frame_t frame_id : frame_set) {
         if (frame_id == first_frame) continue;
         const double distance =
-            (block.ToSE3().Inverse().translation() - first_center).norm();
+            (state->frames.at(frame_id).rig_from_world.Inverse().translation() -
+             first_center)
+                .norm();
         if (distance > far_distance) {
           far_distance = distance;
-          far_frame = frame_id;
+          scale_frame = frame_id;
         }
       }
-      PoseBlock& far = frame_blocks.at(far_frame);
-      int coordinate = 0;
+      const Vec3 t = state->frames.at(scale_frame).rig_from_world.translation();
+      scale_coordinate = 0;
       for (int i = 1; i < 3; ++i) {
-        if (std::abs(far.t[i]) > std::abs(far.t[coordinate])) coordinate = i;
+        if (std::abs(t[i]) > std::abs(t[scale_coordinate])) scale_coordinate = i;
       }
-      owned_manifolds.push_back(std::make_unique<ceres::SubsetManifold>(
-          3, std::vector<int>{coordinate}));
-      problem.SetManifold(far.t.data(), owned_manifolds.back().get());
-      parts.push_back("scale: frame " + std::to_string(far_frame) + " t[" +
-                      std::to_string(coordinate) + "] fixed");
+      parts.push_back("scale: frame " + std::to_string(scale_frame) + " t[" +
+                      std::to_string(scale_coordinate) + "] fixed");
     }
     for (size_t i = 0; i < parts.size(); ++i) {
       stats.gauge += (i ? "; " : "") + parts[i];
     }
   }
-  // Solver.
-  ceres::Solver::Options solver_options;
-  const bool dense =
-      static_cast<int>(frame_blocks.size()) <= options.dense_schur_max_frames;
-  if (dense) {
-    solver_options.linear_solver_type = ceres::DENSE_SCHUR;
-  } else if (ceres::IsSparseLinearAlgebraLibraryTypeAvailable(
-                 ceres::SUITE_SPARSE)) {
-    solver_options.linear_solver_type = ceres::SPARSE_SCHUR;
-    solver_options.sparse_linear_algebra_library_type = ceres::SUITE_SPARSE;
-  } else if (ceres::IsSparseLinearAlgebraLibraryTypeAvailable(
-                 ceres::EIGEN_SPARSE)) {
-    solver_options.linear_solver_type = ceres::SPARSE_SCHUR;
-    solver_options.sparse_linear_algebra_library_type = ceres::EIGEN_SPARSE;
+
+  const bool refine_rig = state->has_rig && options.refine_cam_from_rig;
+  spec.observations = &observations;
+  spec.track_set = &track_set;
+  spec.frame_set = &frame_set;
+  spec.camera_set = &camera_set;
+  const bool use_schur =
+      options.solver == "schur" ||
+      (options.solver == "auto" && !refine_rig &&
+       static_cast<int>(frame_set.size()) <= options.dense_schur_max_frames);
+  if (use_schur) {
+    THROW_CHECK_MSG(!refine_rig,
+                    "the Schur solver does not refine cam_from_rig; use solver ceres");
+    SolveWithSchur(options, spec, start, state, &stats);
   } else {
-    solver_options.linear_solver_type = ceres::ITERATIVE_SCHUR;
-    solver_options.preconditioner_type = ceres::SCHUR_JACOBI;
+    SolveWithCeres(options, spec, start, state, &stats);
   }
-  auto ordering = std::make_shared<ceres::ParameterBlockOrdering>();
-  for (size_t k : track_set)
-    ordering->AddElementToGroup(state->tracks[k].xyz.data(), 0);
-  std::vector<double*> blocks;
-  problem.GetParameterBlocks(&blocks);
-  for (double* block : blocks) {
-    if (!ordering->IsMember(block)) ordering->AddElementToGroup(block, 1);
-  }
-  solver_options.linear_solver_ordering = ordering;
-  solver_options.max_num_iterations = options.max_num_iterations;
-  solver_options.function_tolerance = options.function_tolerance;
-  solver_options.gradient_tolerance = options.gradient_tolerance;
-  solver_options.parameter_tolerance = options.parameter_tolerance;
-  solver_options.num_threads =
-      options.num_threads > 0
-          ? options.num_threads
-          : std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
-  solver_options.minimizer_progress_to_stdout = options.verbose;
-  solver_options.logging_type =
-      options.verbose ? ceres::PER_MINIMIZER_ITERATION : ceres::SILENT;
-
-  ceres::Solver::Summary summary;
-  ceres::Solve(solver_options, &problem, &summary);
-
-  stats.initial_cost = summary.initial_cost;
-  stats.final_cost = summary.final_cost;
-  stats.num_iterations = static_cast<int>(summary.iterations.size());
-  stats.converged = summary.termination_type == ceres::CONVERGENCE;
-  stats.usable = summary.IsSolutionUsable();
-  stats.termination = ceres::TerminationTypeToString(summary.termination_type) +
-                      std::string(": ") + summary.message;
-  stats.linear_solver =
-      ceres::LinearSolverTypeToString(summary.linear_solver_type_used);
-
-  // Write back (camera params and points were optimised in place).
-  for (const auto& [frame_id, block] : frame_blocks) {
-    state->frames.at(frame_id).rig_from_world = block.ToSE3();
-  }
-  for (const auto& [camera_id, block] : rig_blocks) {
-    state->cam_from_rig[camera_id] = block.ToSE3();
-  }
-  for (size_t k : track_set) {
-    Track& track = state->tracks[k];
-    double sum = 0.0;
-    int count = 0;
-    for (const TrackElement& el : track.elements) {
-      const SfmImage* image = nullptr;
-      if (!ImageIsRegistered(*state, el.image_id, &image)) continue;
-      sum += ObservationError(*state, track, el);
-      ++count;
-    }
-    track.error = count > 0 ? sum / count : -1.0;
-  }
+  UpdateTrackErrors(track_set, state);
   stats.final_mean_reprojection_error_px = MeanError(*state, observations);
   stats.seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start)
@@ -532,7 +706,8 @@ BundleAdjustmentStats RunBundleAdjustment(
       "prior + {} "
       "LiDAR residuals; gauge: {}; cost {:.6g} -> {:.6g}, mean error {:.3f} -> "
       "{:.3f} px, {} "
-      "iterations ({}), {:.2f} s",
+      "iterations ({}), {:.2f} s (setup {:.2f}, solve {:.2f}: linear {:.2f}, "
+      "evaluation {:.2f})",
       stats.num_frames,
       stats.num_images,
       stats.num_points,
@@ -546,7 +721,11 @@ BundleAdjustmentStats RunBundleAdjustment(
       stats.final_mean_reprojection_error_px,
       stats.num_iterations,
       stats.termination,
-      stats.seconds);
+      stats.seconds,
+      stats.setup_seconds,
+      stats.ceres_seconds,
+      stats.linear_solver_seconds,
+      stats.evaluation_seconds);
   return stats;
 }
 

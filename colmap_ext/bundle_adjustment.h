@@ -72,6 +72,10 @@ struct BundleAdjustmentOptions {
   // poses moved). 0 = every triangulated track.
   int max_tracks_per_image = 0;
   int dense_schur_max_frames = 50;    // up to this many frames: DENSE_SCHUR
+  // auto: lisfm's dense-Schur Levenberg-Marquardt (schur_bundle_adjuster.h)
+  // up to dense_schur_max_frames frames when cam_from_rig is not refined,
+  // Ceres otherwise; ceres / schur force one (schur cannot refine cam_from_rig).
+  std::string solver = "auto";
   int num_threads = -1;               // -1: hardware threads
   bool verbose = false;               // Ceres progress to stdout
   bool Check() const;
@@ -99,7 +103,11 @@ struct BundleAdjustmentStats {
   bool usable = false;      // Ceres IsSolutionUsable()
   std::string termination;  // Ceres brief report
   std::string linear_solver;
-  double seconds = 0.0;
+  double seconds = 0.0;             // whole call
+  double setup_seconds = 0.0;       // building the Ceres problem
+  double ceres_seconds = 0.0;       // ceres::Solve: preprocessing + minimiser
+  double linear_solver_seconds = 0.0;  // of which the linear solves
+  double evaluation_seconds = 0.0;     // of which residuals + Jacobians
 };
 
 // Optimises the registered frames, cameras (per options) and the triangulated

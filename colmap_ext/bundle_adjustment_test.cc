@@ -286,21 +286,149 @@ TEST(BundleAdjustment, NoiseFreeSceneConvergesExactly) {
   EXPECT_LT(final.max_position_m, 1e-5);
   EXPECT_LT(final.rms_point_m, 1e-5);
   EXPECT_LT(stats.final_mean_reprojection_error_px, 1e-4);
-  EXPECT_EQ(stats.linear_solver,
-            "DENSE_SCHUR");  // 10 frames <= dense_schur_max_frames
+  // 10 frames <= dense_schur_max_frames: lisfm's dense-Schur LM by default.
+  EXPECT_EQ(stats.linear_solver, "lisfm dense Schur LM");
 
-  // The sparse path (large problems) reaches the same optimum.
-  MapperState sparse_state = scene.state;
-  Perturb(&sparse_state, 0.02, 0.0, 0.1, {1});
-  BundleAdjustmentOptions sparse_options = FixedIntrinsicsOptions();
-  sparse_options.dense_schur_max_frames = 0;
-  const BundleAdjustmentStats sparse_stats =
-      RunBundleAdjustment(sparse_options, &sparse_state);
-  EXPECT_TRUE(sparse_stats.converged) << sparse_stats.termination;
-  EXPECT_EQ(sparse_stats.linear_solver, "SPARSE_SCHUR");
-  const Errors sparse = ComputeErrors(scene, sparse_state);
-  EXPECT_LT(sparse.max_rotation_rad, 1e-6);
-  EXPECT_LT(sparse.max_position_m, 1e-5);
+  // Ceres' dense and sparse Schur paths reach the same optimum.
+  for (const std::string solver_path : {"dense", "sparse"}) {
+    MapperState ceres_state = scene.state;
+    Perturb(&ceres_state, 0.02, 0.0, 0.1, {1});
+    BundleAdjustmentOptions ceres_options = FixedIntrinsicsOptions();
+    ceres_options.solver = "ceres";
+    if (solver_path == "sparse") ceres_options.dense_schur_max_frames = 0;
+    const BundleAdjustmentStats ceres_stats = RunBundleAdjustment(ceres_options, &ceres_state);
+    EXPECT_TRUE(ceres_stats.converged) << ceres_stats.termination;
+    EXPECT_EQ(ceres_stats.linear_solver, solver_path == "sparse" ? "SPARSE_SCHUR" : "DENSE_SCHUR");
+    const Errors ceres_errors = ComputeErrors(scene, ceres_state);
+    EXPECT_LT(ceres_errors.max_rotation_rad, 1e-6) << solver_path;
+    EXPECT_LT(ceres_errors.max_position_m, 1e-5) << solver_path;
+  }
+}
+
+// The Schur solver and Ceres minimise the same objective: from the same start
+// with tight tolerances they reach the same optimum (poses, points, refined
+// intrinsics, cost) on a problem with everything at once: Cauchy loss with
+// outliers, focal length + distortion refined (free indices 0 and 3 of
+// SIMPLE_RADIAL), position + rotation priors on some frames and LiDAR
+// constraints between consecutive frames.
+TEST(BundleAdjustment, SchurSolverMatchesCeres) {
+  SceneOptions scene_options;
+  scene_options.outlier_ratio = 0.03;
+  const Scene scene = MakeScene(scene_options);
+  MapperState start = scene.state;
+  std::normal_distribution<double> n01(0.0, 1.0);
+  for (frame_t f : {2, 5, 9}) {
+    SfmFrame& frame = start.frames.at(f);
+    frame.has_prior_position = true;
+    frame.prior_position = Center(scene.rig_from_world.at(f)) +
+                           0.05 * Vec3(n01(test::Rng()), n01(test::Rng()), n01(test::Rng()));
+    frame.prior_position_covariance = Mat3::Identity() * 0.05 * 0.05;
+    frame.has_prior_rotation = true;
+    frame.prior_rig_from_world_rotation =
+        so3::Exp(Vec3(0.01, -0.005, 0.002)) * scene.rig_from_world.at(f).rotation();
+    frame.prior_rotation_sigma = 0.01;
+  }
+  Mat6 covariance = Mat6::Identity() * 1e-4;
+  for (frame_t f = 1; f < 10; ++f) {
+    LidarConstraint constraint;
+    constraint.frame_id1 = f;
+    constraint.frame_id2 = f + 1;
+    Vec6 xi;
+    for (int i = 0; i < 6; ++i) xi[i] = 0.01 * n01(test::Rng());
+    constraint.rig1_from_rig2 = scene.rig_from_world.at(f) *
+                                scene.rig_from_world.at(f + 1).Inverse() * SE3::Exp(xi);
+    constraint.covariance = covariance;
+    start.lidar_constraints.push_back(constraint);
+  }
+  Perturb(&start, 0.01, 0.05, 0.05);
+  start.cameras.begin()->second.params[0] *= 1.02;  // focal length 2 % off
+
+  BundleAdjustmentOptions options;
+  options.num_threads = 2;
+  options.loss_type = "cauchy";
+  options.max_num_iterations = 200;
+  options.function_tolerance = 1e-14;
+  options.gradient_tolerance = 1e-14;
+  options.parameter_tolerance = 1e-14;
+  MapperState schur_state = start;
+  MapperState ceres_state = start;
+  options.solver = "schur";
+  const BundleAdjustmentStats schur = RunBundleAdjustment(options, &schur_state);
+  options.solver = "ceres";
+  const BundleAdjustmentStats ceres = RunBundleAdjustment(options, &ceres_state);
+  EXPECT_EQ(schur.linear_solver, "lisfm dense Schur LM");
+  EXPECT_EQ(ceres.linear_solver, "DENSE_SCHUR");
+  EXPECT_EQ(schur.gauge, ceres.gauge);
+  EXPECT_EQ(schur.num_lidar_residuals, 9u);
+  EXPECT_EQ(schur.num_position_prior_residuals, 3u);
+  EXPECT_NEAR(schur.initial_cost, ceres.initial_cost, 1e-9 * ceres.initial_cost);
+  // Both run to machine-precision convergence of the same smooth objective.
+  EXPECT_NEAR(schur.final_cost, ceres.final_cost, 1e-8 * ceres.final_cost);
+  EXPECT_LT(schur.final_cost, schur.initial_cost);
+  // It did move: the start is perturbed by up to 5 cm per frame.
+  double max_move = 0.0;
+  for (const auto& [frame_id, frame] : schur_state.frames) {
+    max_move = std::max(max_move, (Center(frame.rig_from_world) -
+                                   Center(start.frames.at(frame_id).rig_from_world))
+                                      .norm());
+  }
+  EXPECT_GT(max_move, 0.01);
+  for (const auto& [frame_id, frame] : schur_state.frames) {
+    EXPECT_TRUE(test::PosesNear(frame.rig_from_world,
+                                ceres_state.frames.at(frame_id).rig_from_world, 1e-7, 1e-6))
+        << "frame " << frame_id;
+  }
+  const std::vector<double>& p_schur = schur_state.cameras.begin()->second.params;
+  const std::vector<double>& p_ceres = ceres_state.cameras.begin()->second.params;
+  const std::vector<double>& p_start = start.cameras.begin()->second.params;
+  for (size_t i = 0; i < p_schur.size(); ++i) {
+    EXPECT_NEAR(p_schur[i], p_ceres[i], 1e-6 * std::max(1.0, std::abs(p_ceres[i]))) << i;
+  }
+  EXPECT_NE(p_schur[0], p_start[0]);   // focal length refined
+  EXPECT_EQ(p_schur[1], p_start[1]);   // principal point held
+  EXPECT_EQ(p_schur[2], p_start[2]);
+  double max_point_diff = 0.0;
+  for (size_t k = 0; k < schur_state.tracks.size(); ++k) {
+    max_point_diff = std::max(max_point_diff,
+                              (schur_state.tracks[k].xyz - ceres_state.tracks[k].xyz).norm());
+  }
+  EXPECT_LT(max_point_diff, 1e-5);
+  EXPECT_NEAR(schur.final_mean_reprojection_error_px, ceres.final_mean_reprojection_error_px, 1e-6);
+}
+
+// Both solvers keep the gauge: the first frame exactly, and the far frame's
+// largest translation coordinate.
+TEST(BundleAdjustment, SchurSolverKeepsTheGauge) {
+  const Scene scene = MakeScene(SceneOptions());
+  MapperState state = scene.state;
+  Perturb(&state, 0.02, 0.1, 0.1);
+  const MapperState before = state;
+  BundleAdjustmentOptions options = FixedIntrinsicsOptions();
+  options.solver = "schur";
+  const BundleAdjustmentStats stats = RunBundleAdjustment(options, &state);
+  EXPECT_TRUE(stats.converged) << stats.termination;
+  EXPECT_TRUE(test::PosesNear(state.frames.at(1).rig_from_world,
+                              before.frames.at(1).rig_from_world, 0.0, 0.0));
+  // "scale: frame F t[i] fixed"
+  const size_t at = stats.gauge.find("scale: frame ");
+  ASSERT_NE(at, std::string::npos) << stats.gauge;
+  const frame_t far = static_cast<frame_t>(std::stoul(stats.gauge.substr(at + 13)));
+  const int coordinate = stats.gauge[stats.gauge.find("t[", at) + 2] - '0';
+  EXPECT_EQ(state.frames.at(far).rig_from_world.translation()[coordinate],
+            before.frames.at(far).rig_from_world.translation()[coordinate]);
+  EXPECT_NE(state.frames.at(far).rig_from_world.translation()[(coordinate + 1) % 3],
+            before.frames.at(far).rig_from_world.translation()[(coordinate + 1) % 3]);
+  // The cam_from_rig refinement is Ceres' job: "auto" switches, "schur" refuses.
+  SceneOptions rig_options;
+  rig_options.rig = true;
+  const Scene rig_scene = MakeScene(rig_options);
+  MapperState rig_state = rig_scene.state;
+  BundleAdjustmentOptions rig_ba = FixedIntrinsicsOptions();
+  rig_ba.refine_cam_from_rig = true;
+  rig_ba.max_num_iterations = 2;
+  EXPECT_EQ(RunBundleAdjustment(rig_ba, &rig_state).linear_solver, "DENSE_SCHUR");
+  rig_ba.solver = "schur";
+  EXPECT_THROW(RunBundleAdjustment(rig_ba, &rig_state), InternalError);
 }
 
 TEST(BundleAdjustment, RigSceneKeepsFixedCamFromRig) {

@@ -412,6 +412,45 @@ struct ReprojectionErrorFunctor {
 // so d/dw = 2 v x X and d/dv = -2 w [X]x + 2 ((v.X) I + v X^T - 2 X v^T); along
 // the unit sphere (the quaternion manifold's tangent space) this equals the
 // derivative of q.toRotationMatrix() * X.
+// Pixel of the normalised image point (u, v) = (x/z, y/z) of camera-frame point
+// x_in_cam, with d pixel / d x_in_cam (2x3) and d pixel / d params (2 x
+// kNumParams, row-major) when those are non-null. Only the distortion part goes
+// through Jets (2 + kNumParams inputs). No check of z > 0 (callers decide).
+template <typename Model>
+inline void ProjectWithJacobians(const double* params,
+                                 const Eigen::Vector3d& x_in_cam,
+                                 Eigen::Vector2d* pixel,
+                                 Eigen::Matrix<double, 2, 3>* d_pixel_d_cam,
+                                 double* d_pixel_d_params) {
+  constexpr int N = Model::kNumParams;
+  const double inv_z = 1.0 / x_in_cam.z();
+  const double u = x_in_cam.x() * inv_z;
+  const double v = x_in_cam.y() * inv_z;
+  if (d_pixel_d_cam == nullptr && d_pixel_d_params == nullptr) {
+    Model::ImgFromCam(params, u, v, &pixel->x(), &pixel->y());
+    return;
+  }
+  using J = ceres::Jet<double, 2 + N>;
+  J params_jet[N];
+  for (int i = 0; i < N; ++i) params_jet[i] = J(params[i], 2 + i);
+  J px, py;
+  Model::ImgFromCam(params_jet, J(u, 0), J(v, 1), &px, &py);
+  *pixel = Eigen::Vector2d(px.a, py.a);
+  if (d_pixel_d_cam != nullptr) {
+    Eigen::Matrix<double, 2, 2> d_pixel_d_uv;
+    d_pixel_d_uv << px.v[0], px.v[1], py.v[0], py.v[1];
+    Eigen::Matrix<double, 2, 3> d_uv_d_cam;
+    d_uv_d_cam << inv_z, 0.0, -u * inv_z, 0.0, inv_z, -v * inv_z;
+    *d_pixel_d_cam = d_pixel_d_uv * d_uv_d_cam;
+  }
+  if (d_pixel_d_params != nullptr) {
+    for (int i = 0; i < N; ++i) {
+      d_pixel_d_params[i] = px.v[2 + i];
+      d_pixel_d_params[N + i] = py.v[2 + i];
+    }
+  }
+}
+
 template <typename Model>
 class AnalyticReprojectionCost
     : public ceres::SizedCostFunction<2, 4, 3, 3, Model::kNumParams> {
@@ -426,7 +465,6 @@ class AnalyticReprojectionCost
   bool Evaluate(double const* const* parameters,
                 double* residuals,
                 double** jacobians) const override {
-    constexpr int N = Model::kNumParams;
     const Eigen::Map<const Eigen::Quaterniond> q(parameters[0]);
     const Eigen::Map<const Eigen::Vector3d> t(parameters[1]);
     const Eigen::Map<const Eigen::Vector3d> x(parameters[2]);
@@ -434,30 +472,20 @@ class AnalyticReprojectionCost
     const Eigen::Matrix3d R = q.toRotationMatrix();
     const Eigen::Vector3d x_in_cam =
         cam_from_rig_rotation_ * (R * x + t) + cam_from_rig_translation_;
-    const double inv_z = 1.0 / x_in_cam.z();
-    const double u = x_in_cam.x() * inv_z;
-    const double v = x_in_cam.y() * inv_z;
+    Eigen::Vector2d pixel;
     if (jacobians == nullptr) {
-      double px, py;
-      Model::ImgFromCam(params, u, v, &px, &py);
-      residuals[0] = px - observed_.x();
-      residuals[1] = py - observed_.y();
+      ProjectWithJacobians<Model>(params, x_in_cam, &pixel, nullptr, nullptr);
+      residuals[0] = pixel.x() - observed_.x();
+      residuals[1] = pixel.y() - observed_.y();
       return true;
     }
-    using J = ceres::Jet<double, 2 + N>;
-    J params_jet[N];
-    for (int i = 0; i < N; ++i) params_jet[i] = J(params[i], 2 + i);
-    J px, py;
-    Model::ImgFromCam(params_jet, J(u, 0), J(v, 1), &px, &py);
-    residuals[0] = px.a - observed_.x();
-    residuals[1] = py.a - observed_.y();
-    Eigen::Matrix<double, 2, 2> d_pixel_d_uv;
-    d_pixel_d_uv << px.v[0], px.v[1], py.v[0], py.v[1];
-    Eigen::Matrix<double, 2, 3> d_uv_d_cam;
-    d_uv_d_cam << inv_z, 0.0, -u * inv_z, 0.0, inv_z, -v * inv_z;
+    Eigen::Matrix<double, 2, 3> d_pixel_d_cam;
+    ProjectWithJacobians<Model>(params, x_in_cam, &pixel, &d_pixel_d_cam,
+                                jacobians[3]);
+    residuals[0] = pixel.x() - observed_.x();
+    residuals[1] = pixel.y() - observed_.y();
     // d pixel / d x_in_rig.
-    const Eigen::Matrix<double, 2, 3> d_rig =
-        d_pixel_d_uv * d_uv_d_cam * cam_from_rig_rotation_;
+    const Eigen::Matrix<double, 2, 3> d_rig = d_pixel_d_cam * cam_from_rig_rotation_;
     if (jacobians[0] != nullptr) {
       const Eigen::Vector3d qv(q.x(), q.y(), q.z());
       const double qw = q.w();
@@ -478,12 +506,6 @@ class AnalyticReprojectionCost
     if (jacobians[2] != nullptr) {
       Eigen::Map<Eigen::Matrix<double, 2, 3, Eigen::RowMajor>> j_x(jacobians[2]);
       j_x = d_rig * R;
-    }
-    if (jacobians[3] != nullptr) {
-      for (int i = 0; i < N; ++i) {
-        jacobians[3][i] = px.v[2 + i];
-        jacobians[3][N + i] = py.v[2 + i];
-      }
     }
     return true;
   }

@@ -253,6 +253,10 @@ GlobalMapperResult RunGlobalMapper(const Database& database, const Rig* rig,
                                 {"final_error_px", ba.final_mean_reprojection_error_px},
                                 {"termination", ba.termination},
                                 {"usable", ba.usable},
+                                {"setup_seconds", ba.setup_seconds},
+                                {"ceres_seconds", ba.ceres_seconds},
+                                {"linear_solver_seconds", ba.linear_solver_seconds},
+                                {"evaluation_seconds", ba.evaluation_seconds},
                                 {"seconds", SecondsSince(t0)}};
       t0 = Clock::now();
       if (ba_options.max_tracks_per_image > 0) {

@@ -144,6 +144,7 @@ struct PairJob {
   image_t image_id2 = kInvalidImageId;
   PairKind kind = PairKind::kEstimate;
   SE3 known_cam2_from_cam1;  // kKnownPose only
+  Mat3 database_E = Mat3::Zero();  // kEstimate: the matcher's E when usable
   bool metric = false;
   double threshold = 0.0;  // normalised-plane units
   std::vector<std::pair<point2D_t, point2D_t>> matches;
@@ -180,16 +181,27 @@ std::optional<ViewGraphEdge> ProcessPair(const PairJob& job,
     }
     const cv::Mat identity = cv::Mat::eye(3, 3, CV_64F);
     cv::Mat mask;
-    cv::Mat E = cv::findEssentialMat(points1,
-                                     points2,
-                                     identity,
-                                     cv::USAC_ACCURATE,
-                                     options.ransac_confidence,
-                                     job.threshold,
-                                     options.ransac_max_iterations,
-                                     mask);
-    if (E.rows < 3 || E.cols != 3 || mask.empty()) return std::nullopt;
-    E = E.rowRange(0, 3).clone();
+    cv::Mat E;
+    if (!job.database_E.isZero()) {
+      // The matcher's E (estimated on the same undistorted normalised
+      // coordinates); its inlier set is the whole list.
+      E = cv::Mat(3, 3, CV_64F);
+      for (int r = 0; r < 3; ++r) {
+        for (int c = 0; c < 3; ++c) E.at<double>(r, c) = job.database_E(r, c);
+      }
+      mask = cv::Mat(n, 1, CV_8U, cv::Scalar(1));
+    } else {
+      E = cv::findEssentialMat(points1,
+                               points2,
+                               identity,
+                               cv::USAC_ACCURATE,
+                               options.ransac_confidence,
+                               job.threshold,
+                               options.ransac_max_iterations,
+                               mask);
+      if (E.rows < 3 || E.cols != 3 || mask.empty()) return std::nullopt;
+      E = E.rowRange(0, 3).clone();
+    }
     cv::Mat R_cv, t_cv, triangulated;
     cv::Mat pose_mask = mask.clone();
     // Points beyond 1000 baselines count as "at infinity" (COLMAP's
@@ -347,6 +359,10 @@ ViewGraphStats BuildViewGraph(const Database& database,
       job.known_cam2_from_cam1 =
           state->cam_from_rig.at(image2.camera_id) *
           state->cam_from_rig.at(image1.camera_id).Inverse();
+    } else if (options.use_database_essential &&
+               geometry.config == static_cast<int>(TwoViewConfig::kCalibrated) &&
+               geometry.E.allFinite() && geometry.E.norm() > 0.0) {
+      job.database_E = geometry.E;
     } else if (!options.reestimate_relative_poses &&
                geometry.tvec.norm() > 0.0) {
       job.kind = PairKind::kKnownPose;

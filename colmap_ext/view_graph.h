@@ -51,6 +51,11 @@ struct ViewGraphOptions {
   // Re-estimate poses between different frames. When false, the database's
   // qvec/tvec are used where they are set (|tvec| > 0), else it estimates.
   bool reestimate_relative_poses = true;
+  // For CALIBRATED pairs, start from the database's essential matrix (the
+  // matcher's RANSAC result on the same normalised coordinates) instead of a
+  // new 5-point RANSAC; the pose is still decomposed, checked for cheirality
+  // and Sampson-polished on the inliers.
+  bool use_database_essential = false;
   int num_threads = -1;               // worker threads; -1 = all cores
   double ransac_confidence = 0.9999;  // RANSAC success probability (0..1)
   int ransac_max_iterations = 2000;   // RANSAC iteration cap (count)
