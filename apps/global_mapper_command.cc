@@ -44,6 +44,8 @@ int RunGlobalMapper(int argc, char** argv) {
   // Mapper.
   options.AddInt("Mapper.num_refinement_rounds", &mapper.num_refinement_rounds,
                  "rounds of bundle adjustment -> filter -> retriangulate before the final BA");
+  options.AddDouble("Mapper.refinement_function_tolerance", &mapper.refinement_function_tolerance,
+                    "relative cost change that ends a refinement round's bundle adjustment");
   options.AddBool("Mapper.final_full_bundle_adjustment", &mapper.final_full_bundle_adjustment,
                   "the final bundle adjustment uses every point");
   options.AddInt("Mapper.final_max_num_iterations", &mapper.final_max_num_iterations,
@@ -130,7 +132,9 @@ int RunGlobalMapper(int argc, char** argv) {
   mapper.bundle_adjustment.num_threads = num_threads;
   if (!mapper.view_graph.Check() || !mapper.rotation_averaging.Check() ||
       !mapper.translation_averaging.Check() || !mapper.tracks.Check() ||
-      !mapper.triangulation.Check() || !mapper.bundle_adjustment.Check()) {
+      !mapper.triangulation.Check() || !mapper.bundle_adjustment.Check() ||
+      mapper.num_refinement_rounds < 0 || !(mapper.refinement_function_tolerance >= 0.0) ||
+      mapper.final_max_num_iterations < 0) {
     throw UsageError("lisfm global_mapper: invalid option values (see -h)");
   }
 

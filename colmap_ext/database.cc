@@ -815,6 +815,21 @@ std::vector<std::pair<image_pair_t, MatchesBlob>> Database::ReadAllMatches() con
   return all;
 }
 
+std::unordered_map<image_pair_t, size_t> Database::ReadAllNumMatches() const {
+  std::unordered_map<image_pair_t, size_t> counts;
+  if (!HasTable("matches")) return counts;
+  auto stmt = Prepare("SELECT pair_id, rows FROM matches");
+  while (stmt->Step() == SQLITE_ROW) {
+    const int64_t rows = stmt->Int(1);
+    if (rows < 0) {
+      throw InputError(path_, PairWhere("matches", static_cast<image_pair_t>(stmt->Int(0))),
+                       "expected a non-negative row count, found " + std::to_string(rows));
+    }
+    counts[static_cast<image_pair_t>(stmt->Int(0))] = static_cast<size_t>(rows);
+  }
+  return counts;
+}
+
 // ---- two-view geometries ----
 
 namespace {

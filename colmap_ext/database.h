@@ -33,6 +33,7 @@
 #include <cstdint>
 #include <memory>
 #include <string>
+#include <unordered_map>
 #include <utility>
 #include <vector>
 
@@ -189,6 +190,8 @@ class Database {
   MatchesBlob ReadMatches(image_t image_id1, image_t image_id2) const;
   bool ExistsMatches(image_t image_id1, image_t image_id2) const;
   std::vector<std::pair<image_pair_t, MatchesBlob>> ReadAllMatches() const;
+  // pair_id -> number of raw matches (the `rows` column; no blob is read).
+  std::unordered_map<image_pair_t, size_t> ReadAllNumMatches() const;
   void WriteTwoViewGeometry(image_t image_id1,
                             image_t image_id2,
                             const TwoViewGeometry& geometry);

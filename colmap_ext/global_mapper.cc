@@ -232,6 +232,7 @@ GlobalMapperResult RunGlobalMapper(const Database& database, const Rig* rig,
       nlohmann::json r;
       t0 = Clock::now();
       BundleAdjustmentOptions ba_options = options.bundle_adjustment;
+      if (!final_round) ba_options.function_tolerance = options.refinement_function_tolerance;
       if (final_round && options.final_full_bundle_adjustment &&
           ba_options.max_tracks_per_image > 0) {
         // From the converged subsampled solution a few iterations reach the

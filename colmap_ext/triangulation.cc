@@ -12,6 +12,7 @@
 #include <tbb/parallel_for.h>
 #include <tbb/task_arena.h>
 
+#include "colmap_ext/camera_model_functors.h"
 #include "core/errors.h"
 #include "core/logging.h"
 
@@ -133,8 +134,8 @@ bool TriangulateLinear(const std::vector<const Observation*>& obs, Vec3* xyz) {
   return xyz->allFinite();
 }
 
-// Sum of squared pixel errors and, when J is given, the stacked Jacobian
-// (2N x 3) and residuals; observations behind the camera contribute nothing
+// Sum of squared pixel errors and, when jtj is given, J^T J and J^T r of the
+// stacked (2N x 3) Jacobian (analytic projection, camera_model_functors.h); observations behind the camera contribute nothing
 // to the Jacobian and kInf to the cost.
 double Cost(const std::vector<const Observation*>& obs,
             const Vec3& xyz,
@@ -148,27 +149,19 @@ double Cost(const std::vector<const Observation*>& obs,
   for (const Observation* o : obs) {
     const Vec3 x_in_cam = o->geometry->rotation * xyz + o->geometry->translation;
     if (!(x_in_cam.z() > 0.0)) return kInf;
-    const Vec2 u = x_in_cam.head<2>() / x_in_cam.z();
     const Camera& camera = *o->geometry->camera;
-    const Vec2 pixel = camera.ImgFromCam(u);
+    Vec2 pixel;
+    Eigen::Matrix<double, 2, 3> d_pixel_d_cam;
+    VisitCameraModel(camera.model_id, [&](auto model) {
+      using Model = decltype(model);
+      ProjectWithJacobians<Model>(camera.params.data(), x_in_cam, &pixel,
+                                  jtj != nullptr ? &d_pixel_d_cam : nullptr, nullptr);
+    });
     const Vec2 r = pixel - o->pixel;
     if (!r.allFinite()) return kInf;
     cost += r.squaredNorm();
     if (jtj == nullptr) continue;
-    // d pixel / d u by central differences (the distortion models are smooth;
-    // the step keeps truncation and rounding errors near 1e-9 relative).
-    Eigen::Matrix2d j_dist;
-    for (int k = 0; k < 2; ++k) {
-      const double h = 1e-6 * std::max(1.0, std::abs(u(k)));
-      Vec2 up = u, um = u;
-      up(k) += h;
-      um(k) -= h;
-      j_dist.col(k) = (camera.ImgFromCam(up) - camera.ImgFromCam(um)) / (2.0 * h);
-    }
-    const double iz = 1.0 / x_in_cam.z();
-    Eigen::Matrix<double, 2, 3> j_proj;
-    j_proj << iz, 0.0, -u.x() * iz, 0.0, iz, -u.y() * iz;
-    const Eigen::Matrix<double, 2, 3> j = j_dist * j_proj * o->geometry->rotation;
+    const Eigen::Matrix<double, 2, 3> j = d_pixel_d_cam * o->geometry->rotation;
     *jtj += j.transpose() * j;
     *jtr += j.transpose() * r;
   }

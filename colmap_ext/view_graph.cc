@@ -203,12 +203,28 @@ std::optional<ViewGraphEdge> ProcessPair(const PairJob& job,
       E = E.rowRange(0, 3).clone();
     }
     cv::Mat R_cv, t_cv, triangulated;
-    cv::Mat pose_mask = mask.clone();
+    // The cheirality vote between the four decompositions of E runs on at
+    // most kMaxVoteMatches inliers (even stride): it triangulates every point
+    // for every hypothesis, and a few hundred votes decide as well as 1000.
+    constexpr int kMaxVoteMatches = 250;
+    std::vector<int> vote_rows;
+    for (int i = 0; i < n; ++i) {
+      if (mask.at<uchar>(i) != 0) vote_rows.push_back(i);
+    }
+    const int num_votes = std::min<int>(kMaxVoteMatches, static_cast<int>(vote_rows.size()));
+    if (num_votes < 5) return std::nullopt;
+    cv::Mat vote1(num_votes, 2, CV_64F), vote2(num_votes, 2, CV_64F);
+    for (int i = 0; i < num_votes; ++i) {
+      const int row = vote_rows[static_cast<size_t>(i) * vote_rows.size() / num_votes];
+      points1.row(row).copyTo(vote1.row(i));
+      points2.row(row).copyTo(vote2.row(i));
+    }
+    cv::Mat pose_mask(num_votes, 1, CV_8U, cv::Scalar(1));
     // Points beyond 1000 baselines count as "at infinity" (COLMAP's
     // cheirality test uses the same bound); they vote for no hypothesis.
     const int num_cheiral = cv::recoverPose(E,
-                                            points1,
-                                            points2,
+                                            vote1,
+                                            vote2,
                                             identity,
                                             R_cv,
                                             t_cv,
@@ -285,10 +301,8 @@ ViewGraphStats BuildViewGraph(const Database& database,
         "expected at least one image pair with a two-view geometry, found none "
         "(run colmap exhaustive_matcher or matches_importer first)");
   }
-  std::unordered_map<image_pair_t, size_t> num_raw_matches;
-  for (const auto& [pair_id, matches] : database.ReadAllMatches()) {
-    num_raw_matches[pair_id] = static_cast<size_t>(matches.rows());
-  }
+  const std::unordered_map<image_pair_t, size_t> num_raw_matches =
+      database.ReadAllNumMatches();
 
   std::vector<PairJob> jobs;
   jobs.reserve(geometries.size());
