@@ -383,10 +383,12 @@ class Solver {
     Acc total = tbb::parallel_deterministic_reduce(
         tbb::blocked_range<size_t>(0, problem_.points.size(), Grain()), init,
         [&](const tbb::blocked_range<size_t>& range, Acc acc) {
-          // Per observation of the point: W = J_cam^T J_point split into the
-          // frame rows (Wf) and the intrinsics rows (Wi); T = W V^-1.
+          // W = J_cam^T J_point of the point: frame rows per observation
+          // (Wf), intrinsics rows per distinct camera (Wi, summed over the
+          // observations in that camera: they share the variables); T = W V^-1.
           std::vector<Mat63, Eigen::aligned_allocator<Mat63>> Wf, Tf;
           std::vector<IBlock> Wi, Ti;
+          std::vector<int> cams;  // distinct cameras with free intrinsics
           for (size_t p = range.begin(); p != range.end(); ++p) {
             Mat3 Vd = V_[p];
             for (int k = 0; k < 3; ++k) Vd(k, k) += lambda * Clamp(V_[p](k, k));
@@ -396,54 +398,58 @@ class Solver {
             const size_t n = point_begin_[p + 1] - begin;
             Wf.resize(n);
             Tf.resize(n);
-            Wi.resize(n);
-            Ti.resize(n);
+            cams.clear();
+            Wi.clear();
             for (size_t a = 0; a < n; ++a) {
               const LinearisedObservation& l = lin_[begin + a];
               const SchurBaObservation& o = obs[begin + a];
-              const int nc = NumFree(o.camera);
               Wf[a].noalias() = l.j_frame.transpose() * l.j_point;
               Tf[a].noalias() = Wf[a] * V_inv;
-              const int fo = 6 * o.frame;
-              acc.b.segment<6>(fo).noalias() -= Tf[a] * g_point_[p];
-              if (nc > 0) {
-                Wi[a].noalias() = l.j_intrinsics.leftCols(nc).transpose() * l.j_point;
-                Ti[a].noalias() = Wi[a] * V_inv;
-                acc.b.segment(camera_offset_[o.camera], nc).noalias() -= Ti[a] * g_point_[p];
+              acc.b.segment<6>(6 * o.frame).noalias() -= Tf[a] * g_point_[p];
+              const int nc = NumFree(o.camera);
+              if (nc == 0) continue;
+              size_t k = std::find(cams.begin(), cams.end(), o.camera) - cams.begin();
+              if (k == cams.size()) {
+                cams.push_back(o.camera);
+                Wi.push_back(IBlock::Zero(nc, 3));
               }
+              Wi[k].noalias() += l.j_intrinsics.leftCols(nc).transpose() * l.j_point;
             }
-            // S -= W_a V^-1 W_c^T for every pair (a, c), c >= a, and its
-            // transpose for c != a.
+            Ti.resize(cams.size());
+            for (size_t k = 0; k < cams.size(); ++k) {
+              Ti[k].noalias() = Wi[k] * V_inv;
+              acc.b.segment(camera_offset_[cams[k]], NumFree(cams[k])).noalias() -=
+                  Ti[k] * g_point_[p];
+            }
+            // S -= W V^-1 W^T block by block (upper pairs, mirrored).
             for (size_t a = 0; a < n; ++a) {
               const int fa = 6 * obs[begin + a].frame;
-              const int ca = camera_offset_[obs[begin + a].camera];
-              const int na = NumFree(obs[begin + a].camera);
               for (size_t c = a; c < n; ++c) {
                 const int fc = 6 * obs[begin + c].frame;
-                const int cc = camera_offset_[obs[begin + c].camera];
-                const int nc = NumFree(obs[begin + c].camera);
-                const Mat6 Bff = Tf[a] * Wf[c].transpose();
-                acc.S.block<6, 6>(fa, fc) -= Bff;
-                if (c != a) acc.S.block<6, 6>(fc, fa) -= Bff.transpose();
-                if (nc > 0) {
-                  const Eigen::Matrix<double, 6, Eigen::Dynamic, 0, 6, kMaxFreeParams> B =
-                      Tf[a] * Wi[c].transpose();
-                  acc.S.block(fa, cc, 6, nc) -= B;
-                  if (c != a) acc.S.block(cc, fa, nc, 6) -= B.transpose();
-                }
-                if (na > 0) {
-                  const Eigen::Matrix<double, Eigen::Dynamic, 6, 0, kMaxFreeParams, 6> B =
-                      Ti[a] * Wf[c].transpose();
-                  acc.S.block(ca, fc, na, 6) -= B;
-                  if (c != a) acc.S.block(fc, ca, 6, na) -= B.transpose();
-                }
-                if (na > 0 && nc > 0) {
-                  const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, kMaxFreeParams,
-                                      kMaxFreeParams>
-                      B = Ti[a] * Wi[c].transpose();
-                  acc.S.block(ca, cc, na, nc) -= B;
-                  if (c != a) acc.S.block(cc, ca, nc, na) -= B.transpose();
-                }
+                const Mat6 B = Tf[a] * Wf[c].transpose();
+                acc.S.block<6, 6>(fa, fc) -= B;
+                if (c != a) acc.S.block<6, 6>(fc, fa) -= B.transpose();
+              }
+              for (size_t k = 0; k < cams.size(); ++k) {
+                const int ck = camera_offset_[cams[k]];
+                const int nk = NumFree(cams[k]);
+                const Eigen::Matrix<double, 6, Eigen::Dynamic, 0, 6, kMaxFreeParams> B =
+                    Tf[a] * Wi[k].transpose();
+                acc.S.block(fa, ck, 6, nk) -= B;
+                acc.S.block(ck, fa, nk, 6) -= B.transpose();
+              }
+            }
+            for (size_t k = 0; k < cams.size(); ++k) {
+              const int ck = camera_offset_[cams[k]];
+              const int nk = NumFree(cams[k]);
+              for (size_t m = k; m < cams.size(); ++m) {
+                const int cm = camera_offset_[cams[m]];
+                const int nm = NumFree(cams[m]);
+                const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, kMaxFreeParams,
+                                    kMaxFreeParams>
+                    B = Ti[k] * Wi[m].transpose();
+                acc.S.block(ck, cm, nk, nm) -= B;
+                if (m != k) acc.S.block(cm, ck, nm, nk) -= B.transpose();
               }
             }
           }
