@@ -11,6 +11,7 @@
 #include <memory>
 #include <set>
 #include <thread>
+#include <unordered_map>
 #include <vector>
 
 #include "colmap_ext/camera_model_functors.h"
@@ -396,8 +397,26 @@ void SolveWithSchur(const BundleAdjustmentOptions& options,
     }
     problem.cameras.push_back(std::move(c));
   }
-  std::map<camera_t, SE3> cam_from_rig;
-  for (camera_t camera_id : *spec.camera_set) cam_from_rig[camera_id] = CamFromRig(*state, camera_id);
+  for (const auto& [camera_id, c] : camera_index) {
+    const SE3 cam_from_rig = CamFromRig(*state, camera_id);
+    problem.cameras[c].cam_from_rig_rotation =
+        cam_from_rig.rotation().normalized().toRotationMatrix();
+    problem.cameras[c].cam_from_rig_translation = cam_from_rig.translation();
+  }
+  // Frame and camera index of every image in the problem.
+  struct ImageIndex {
+    int frame;
+    int camera;
+    const std::vector<Vec2>* keypoints;
+  };
+  std::unordered_map<image_t, ImageIndex> image_index;
+  for (const auto& [image_id, image] : state->images) {
+    const auto f = frame_index.find(image.frame_id);
+    const auto c = camera_index.find(image.camera_id);
+    if (f != frame_index.end() && c != camera_index.end()) {
+      image_index.emplace(image_id, ImageIndex{f->second, c->second, &image.keypoints});
+    }
+  }
   std::vector<size_t> track_of_point;
   problem.observations.reserve(spec.observations->size());
   for (const Observation& obs : *spec.observations) {
@@ -405,15 +424,12 @@ void SolveWithSchur(const BundleAdjustmentOptions& options,
       track_of_point.push_back(obs.track_idx);
       problem.points.push_back(state->tracks[obs.track_idx].xyz);
     }
-    const SfmImage& image = state->images.at(obs.image_id);
+    const ImageIndex& index = image_index.at(obs.image_id);
     SchurBaObservation o;
-    o.frame = frame_index.at(image.frame_id);
-    o.camera = camera_index.at(image.camera_id);
+    o.frame = index.frame;
+    o.camera = index.camera;
     o.point = static_cast<int>(problem.points.size()) - 1;
-    o.observed = image.keypoints[obs.point2D_idx];
-    const SE3& c = cam_from_rig.at(image.camera_id);
-    o.cam_from_rig_rotation = c.rotation().normalized().toRotationMatrix();
-    o.cam_from_rig_translation = c.translation();
+    o.observed = (*index.keypoints)[obs.point2D_idx];
     problem.observations.push_back(o);
   }
   std::vector<std::unique_ptr<ceres::CostFunction>> costs;

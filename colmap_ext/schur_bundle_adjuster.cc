@@ -93,15 +93,16 @@ Eigen::Matrix<double, 4, 3> QuaternionTangentJacobian(const Quat& q) {
 template <typename Model>
 double EvaluateObservation(const SchurBaObservation& o,
                            const State& x,
-                           const std::vector<int>& free_indices,
+                           const SchurBaCamera& camera,
                            const Loss& loss,
                            LinearisedObservation* lin) {
+  const std::vector<int>& free_indices = camera.free_indices;
   constexpr int N = Model::kNumParams;
   const Mat3& R = x.R[o.frame];
   const Vec3& point = x.points[o.point];
   const Vec3 rotated = R * point;
   const Vec3 x_in_cam =
-      o.cam_from_rig_rotation * (rotated + x.t[o.frame]) + o.cam_from_rig_translation;
+      camera.cam_from_rig_rotation * (rotated + x.t[o.frame]) + camera.cam_from_rig_translation;
   const double* params = x.params[o.camera].data();
   Eigen::Vector2d pixel;
   if (lin == nullptr) {
@@ -118,7 +119,7 @@ double EvaluateObservation(const SchurBaObservation& o,
   double rho, rho1;
   loss.Evaluate(r.squaredNorm(), &rho, &rho1);
   const double w = std::sqrt(rho1);
-  const Eigen::Matrix<double, 2, 3> d_rig = w * d_cam * o.cam_from_rig_rotation;
+  const Eigen::Matrix<double, 2, 3> d_rig = w * d_cam * camera.cam_from_rig_rotation;
   lin->r = w * r;
   lin->j_frame.leftCols<3>() = -d_rig * Hat(rotated);
   lin->j_frame.rightCols<3>() = d_rig;
@@ -138,7 +139,7 @@ double EvaluateObservation(const SchurBaProblem& problem,
   const SchurBaCamera& camera = problem.cameras[o.camera];
   return VisitCameraModel(camera.model_id, [&](auto model) {
     using Model = decltype(model);
-    return EvaluateObservation<Model>(o, x, camera.free_indices, loss, lin);
+    return EvaluateObservation<Model>(o, x, camera, loss, lin);
   });
 }
 

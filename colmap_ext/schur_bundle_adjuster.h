@@ -44,6 +44,8 @@ struct SchurBaCamera {
   int model_id = 0;
   std::vector<double> params;
   std::vector<int> free_indices;  // refined parameter indices (ascending)
+  Mat3 cam_from_rig_rotation = Mat3::Identity();
+  Vec3 cam_from_rig_translation = Vec3::Zero();
 };
 
 struct SchurBaObservation {
@@ -51,8 +53,6 @@ struct SchurBaObservation {
   int camera = 0;  // index into cameras
   int point = 0;   // index into points
   Vec2 observed = Vec2::Zero();
-  Mat3 cam_from_rig_rotation = Mat3::Identity();
-  Vec3 cam_from_rig_translation = Vec3::Zero();
 };
 
 // A residual on frame poses only. kind: kPose (blocks q, t of frame1),
