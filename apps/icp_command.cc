@@ -88,7 +88,10 @@ int RunIcp(int argc, char** argv) {
   options.AddDouble("Icp.target_voxel_size", &target_voxel_m, "target voxel downsampling (m, 0 = off)");
   options.AddInt("Icp.normal_neighbors", &normal_options.num_neighbors, "k of the PCA normals");
   options.AddDouble("Icp.normal_radius", &normal_options.max_radius_m, "max neighbour distance for normals (m)");
-  options.AddInt("Icp.max_iterations", &icp.max_iterations, "Gauss-Newton iterations");
+  options.AddInt("Icp.max_iterations", &icp.max_iterations,
+                 "associations (nearest-neighbour passes), each followed by Gauss-Newton solves");
+  options.AddInt("Icp.max_inner_iterations", &icp.max_inner_iterations,
+                 "extra Gauss-Newton solves on the same matches per association (0 = none)");
   options.AddDouble("Icp.max_correspondence_distance", &icp.max_correspondence_distance_m,
                     "reject matches farther than this (m)");
   options.AddDouble("Icp.min_planarity", &icp.min_planarity, "ignore target points with lower planarity");
@@ -106,11 +109,19 @@ int RunIcp(int argc, char** argv) {
   options.AddDouble("Bayesian.step_size", &bayes.sgld.step_size, "SGLD step in the preconditioned metric (0, 2)");
   options.AddDouble("Bayesian.noise_sigma", &bayes.noise_sigma_m, "likelihood sigma (m), 0 = from ICP residuals");
   options.AddInt("Bayesian.seed", &seed, "random seed of the chain");
+  options.AddInt("Bayesian.num_correlation_cells", &bayes.num_correlation_cells,
+                 "spatial cells of the per-pair (cluster sandwich) noise estimate");
+  options.AddDouble("Bayesian.noise_sigma_scale", &bayes.noise_sigma_scale,
+                    "multiplies the per-pair likelihood sigma (fitted on simulated office pairs)");
+  options.AddDouble("Bayesian.prior_sigma_rotation", &bayes.prior_sigma_rotation_rad,
+                    "Gaussian prior on the pose around --init_path, rotation sigma (rad; 0 = flat)");
+  options.AddDouble("Bayesian.prior_sigma_translation", &bayes.prior_sigma_translation_m,
+                    "Gaussian prior on the pose around --init_path, translation sigma (m; 0 = flat)");
   if (!options.Parse(argc, argv)) return 0;
   bayes.sgld.seed = static_cast<uint64_t>(seed);
   if (!icp.Check()) throw UsageError("invalid Icp.* options (see lisfm icp -h for ranges)");
   if (!normal_options.Check()) throw UsageError("Icp.normal_neighbors must be >= 3 and Icp.normal_radius > 0");
-  if (method == "bayesian" && !bayes.sgld.Check()) {
+  if (method == "bayesian" && (!bayes.sgld.Check() || !bayes.Check())) {
     throw UsageError("invalid Bayesian.* options (burn_in < iterations, 0 < step_size < 2, ...)");
   }
 

@@ -1,14 +1,17 @@
 #include "icp/bayesian_icp.h"
 
+#include <algorithm>
 #include <cmath>
 #include <random>
 
 #include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 #include <tbb/parallel_reduce.h>
 
 #include "core/errors.h"
+#include "icp/icp_covariance.h"
 #include "icp/icp_internal.h"
 
 namespace lisfm {
@@ -63,40 +66,50 @@ bool SgldOptions::Check() const {
 
 bool BayesianIcpOptions::Check() const {
   return icp.Check() && sgld.Check() && noise_sigma_m >= 0 && noise_sigma_scale > 0 &&
-         correlation_length_m >= 0;
+         correlation_length_m >= 0 && num_correlation_cells >= 0 && num_correlation_cells != 1 &&
+         prior_sigma_rotation_rad >= 0 && prior_sigma_translation_m >= 0;
 }
 
 SgldResult SampleSgld(const SgldModel& model,
                       const SE3& mode,
                       double noise_sigma,
-                      const SgldOptions& options) {
+                      const SgldOptions& options,
+                      const PosePrior& prior) {
   THROW_CHECK_MSG(options.Check(), "invalid SgldOptions");
+  THROW_CHECK_MSG(prior.information.allFinite() &&
+                      Eigen::SelfAdjointEigenSolver<Mat6>(prior.information).eigenvalues()(0) >= 0,
+                  "PosePrior information must be finite and positive semi-definite");
+  const bool has_prior = !prior.information.isZero(0.0);
+  const SE3 prior_mean_inverse = prior.mean.Inverse();
+  // Prior gradient Lambda e, e = Log(mean^-1 T), and its curvature Lambda (see header).
+  auto prior_gradient = [&](const SE3& T) -> Vec6 {
+    return has_prior ? Vec6(prior.information * (prior_mean_inverse * T).Log()) : Vec6::Zero();
+  };
   THROW_CHECK_GT(noise_sigma, 0.0);
   const size_t n = model.NumTerms();
   THROW_CHECK_GT(n, 0u);
   const double inv_var = 1.0 / (noise_sigma * noise_sigma);
 
-  // Control variate: per-term gradients at the mode, and their sum.
+  // Control variate: per-term gradients at the mode, and their sum; one association
+  // pass (the curvature terms sqrt(w) J / sigma are kept for the reduction).
   std::vector<Vec6> mode_gradients(n, Vec6::Zero());
+  std::vector<Vec6> mode_scaled_jacobians(n, Vec6::Zero());
   tbb::parallel_for(tbb::blocked_range<size_t>(0, n, 1024), [&](const tbb::blocked_range<size_t>& r) {
     double residual, weight;
     Eigen::Matrix<double, 1, 6> J;
     for (size_t i = r.begin(); i != r.end(); ++i) {
       if (model.Term(i, mode, &residual, &J, &weight)) {
         mode_gradients[i] = J.transpose() * (weight * residual * inv_var);
+        mode_scaled_jacobians[i] = J.transpose() * std::sqrt(weight * inv_var);
       }
     }
   });
   BatchSums mode_sums = tbb::parallel_deterministic_reduce(
       tbb::blocked_range<size_t>(0, n, 1024), BatchSums(),
       [&](const tbb::blocked_range<size_t>& r, BatchSums s) {
-        double residual, weight;
-        Eigen::Matrix<double, 1, 6> J;
         for (size_t i = r.begin(); i != r.end(); ++i) {
           s.gradient_difference += mode_gradients[i];
-          if (model.Term(i, mode, &residual, &J, &weight)) {
-            s.curvature.noalias() += J.transpose() * J * (weight * inv_var);
-          }
+          s.curvature.noalias() += mode_scaled_jacobians[i] * mode_scaled_jacobians[i].transpose();
         }
         return s;
       },
@@ -106,11 +119,12 @@ SgldResult SampleSgld(const SgldModel& model,
         return a;
       });
   const Vec6 mode_gradient = mode_sums.gradient_difference;
+  const Mat6 prior_curvature = 0.5 * (prior.information + prior.information.transpose());
 
   Vec6 damping;
   damping << Eigen::Vector3d::Constant(1.0 / std::pow(options.damping_sigma_rotation_rad, 2)),
       Eigen::Vector3d::Constant(1.0 / std::pow(options.damping_sigma_translation_m, 2));
-  Mat6 metric = mode_sums.curvature;
+  Mat6 metric = mode_sums.curvature + prior_curvature;
   metric.diagonal() += damping;
 
   std::mt19937_64 rng(options.seed);
@@ -149,8 +163,8 @@ SgldResult SampleSgld(const SgldModel& model,
           return a;
         });
     result.num_term_evaluations += batch;
-    const Vec6 gradient = mode_gradient + scale * sums.gradient_difference;
-    Mat6 batch_metric = scale * sums.curvature;
+    const Vec6 gradient = mode_gradient + scale * sums.gradient_difference + prior_gradient(T);
+    Mat6 batch_metric = scale * sums.curvature + prior_curvature;
     batch_metric.diagonal() += damping;
     metric = options.metric_decay * metric + (1.0 - options.metric_decay) * batch_metric;
     const Eigen::LLT<Mat6> llt(metric);
@@ -192,20 +206,35 @@ BayesianIcpResult RegisterBayesian(const PointSet& source,
   BayesianIcpResult result;
   result.icp = RegisterPointToPlane(source, target, initial, options.icp, source_normals);
   double sigma = options.noise_sigma_m;
-  if (options.correlation_length_m > 0) {
-    const size_t cells = VoxelDownsamplePoints(source, options.correlation_length_m).size();
-    result.points_per_cell =
-        std::max(1.0, static_cast<double>(source.size()) / static_cast<double>(std::max<size_t>(cells, 1)));
-  }
   if (sigma <= 0) {
-    sigma = options.noise_sigma_scale * std::sqrt(result.icp.residual_variance_m2 *
-                                                  result.points_per_cell);
+    // Per-pair likelihood scale from the cluster-robust sandwich at the ICP optimum.
+    const size_t cells = static_cast<size_t>(options.num_correlation_cells);
+    result.cell_size_m =
+        cells > 0 ? CellSizeForClusterCount(source, cells) : options.correlation_length_m;
+    const ClusterSandwich sandwich =
+        ComputeClusterSandwich(source, target, result.icp.target_from_source, options.icp,
+                               result.cell_size_m, source_normals);
+    sigma = options.noise_sigma_scale * std::sqrt(sandwich.effective_variance_m2);
+    result.num_clusters = sandwich.num_clusters;
+    // A perfect fit (synthetic data) has zero residuals: floor sigma at 1 um.
+    sigma = std::max(sigma, 1e-6);
+    result.variance_inflation =
+        sandwich.residual_variance_m2 > 0 ? sigma * sigma / sandwich.residual_variance_m2 : 0.0;
   }
-  // A perfect fit (synthetic data) has zero residuals: floor sigma at 1 um.
   result.noise_sigma_m = std::max(sigma, 1e-6);
+  PosePrior prior;
+  prior.mean = initial;
+  Vec6 prior_precision = Vec6::Zero();
+  if (options.prior_sigma_rotation_rad > 0) {
+    prior_precision.head<3>().setConstant(1.0 / std::pow(options.prior_sigma_rotation_rad, 2));
+  }
+  if (options.prior_sigma_translation_m > 0) {
+    prior_precision.tail<3>().setConstant(1.0 / std::pow(options.prior_sigma_translation_m, 2));
+  }
+  prior.information = prior_precision.asDiagonal();
   const PointToPlaneModel model(source, source_normals, target, options.icp);
   result.posterior = SampleSgld(model, result.icp.target_from_source, result.noise_sigma_m,
-                                options.sgld);
+                                options.sgld, prior);
   return result;
 }
 

@@ -57,12 +57,24 @@ struct Accumulator {
   }
 };
 
+// The matches of the last association, by source index (only the indices of
+// the current level's subset are meaningful).
+struct MatchCache {
+  std::vector<Eigen::Vector3f> target_point, target_normal;
+  std::vector<uint8_t> valid;
+  explicit MatchCache(size_t n) : target_point(n), target_normal(n), valid(n, 0) {}
+};
+
+// Associates (every stride-th source point) and linearises at ctx; records the
+// matches in *cache when given.
 template <bool full>
 Accumulator Linearize(const PointSet& source,
                       const std::vector<Eigen::Vector3f>& source_normals,
                       const IcpTarget& target,
                       const internal::LinearizationContext& ctx,
-                      size_t stride = 1) {
+                      size_t stride = 1,
+                      MatchCache* cache = nullptr,
+                      std::vector<uint32_t>* hints = nullptr) {
   const bool with_normals = !source_normals.empty();
   const size_t num_used = (source.size() + stride - 1) / stride;
   Accumulator total = tbb::parallel_deterministic_reduce(
@@ -70,11 +82,20 @@ Accumulator Linearize(const PointSet& source,
       Accumulator(),
       [&](const tbb::blocked_range<size_t>& range, Accumulator acc) {
         internal::LinearizedTerm term;
+        Eigen::Vector3f q, nq;
         for (size_t k = range.begin(); k != range.end(); ++k) {
           const size_t i = k * stride;
           const Eigen::Vector3f n = with_normals ? source_normals[i] : Eigen::Vector3f::Zero();
-          if (internal::LinearizePoint(target, ctx, source[i], n, &term)) {
-            acc.template Add<full>(term, source[i]);
+          const bool matched = internal::LinearizePoint(
+              target, ctx, source[i], n, &term, &q, &nq,
+              hints != nullptr ? &(*hints)[i] : nullptr);
+          if (matched) acc.template Add<full>(term, source[i]);
+          if (cache != nullptr) {
+            cache->valid[i] = matched ? 1 : 0;
+            if (matched) {
+              cache->target_point[i] = q;
+              cache->target_normal[i] = nq;
+            }
           }
         }
         return acc;
@@ -86,6 +107,48 @@ Accumulator Linearize(const PointSet& source,
   total.hessian = total.hessian.selfadjointView<Eigen::Upper>();
   total.gradient_outer = total.gradient_outer.selfadjointView<Eigen::Upper>();
   return total;
+}
+
+// Linearises the cached matches at ctx (no association): the Gauss-Newton /
+// IRLS re-solves on fixed correspondences.
+template <bool full>
+Accumulator LinearizeCached(const PointSet& source,
+                            const MatchCache& cache,
+                            const internal::LinearizationContext& ctx,
+                            size_t stride) {
+  const size_t num_used = (source.size() + stride - 1) / stride;
+  Accumulator total = tbb::parallel_deterministic_reduce(
+      tbb::blocked_range<size_t>(0, num_used, 1024),
+      Accumulator(),
+      [&](const tbb::blocked_range<size_t>& range, Accumulator acc) {
+        internal::LinearizedTerm term;
+        for (size_t k = range.begin(); k != range.end(); ++k) {
+          const size_t i = k * stride;
+          if (!cache.valid[i]) continue;
+          internal::LinearizeMatch(ctx, source[i], cache.target_point[i], cache.target_normal[i], &term);
+          acc.template Add<full>(term, source[i]);
+        }
+        return acc;
+      },
+      [](Accumulator a, const Accumulator& b) {
+        a.Join(b);
+        return a;
+      });
+  total.hessian = total.hessian.selfadjointView<Eigen::Upper>();
+  total.gradient_outer = total.gradient_outer.selfadjointView<Eigen::Upper>();
+  return total;
+}
+
+// Damped Gauss-Newton step from the sums; false when too few matches or the
+// solve is not finite.
+bool SolveStep(const Accumulator& acc, int min_inliers, Vec6* step) {
+  if (acc.count < static_cast<size_t>(min_inliers)) return false;
+  // Tiny Levenberg damping keeps degenerate directions from exploding; it is
+  // 1e-9 of the mean diagonal, far below any observable direction.
+  Mat6 damped = acc.hessian;
+  damped.diagonal().array() += 1e-9 * acc.hessian.trace() / 6.0 + 1e-12;
+  *step = -damped.ldlt().solve(acc.gradient);
+  return step->allFinite();
 }
 
 }  // namespace
@@ -145,7 +208,7 @@ bool IcpOptions::Check() const {
          max_normal_angle_deg > 0 && max_normal_angle_deg <= 180 && min_planarity >= 0 &&
          min_planarity <= 1 && kernel_scale_m > 0 && convergence_rotation_rad >= 0 &&
          convergence_translation_m >= 0 && min_inliers >= 6 && degeneracy_threshold >= 0 &&
-         coarse_stride >= 1;
+         coarse_stride >= 1 && max_inner_iterations >= 0;
 }
 
 // ---- targets ----
@@ -237,9 +300,31 @@ bool KdTreeTarget::Match(const Eigen::Vector3f& point,
                          float min_planarity,
                          Eigen::Vector3f* target_point,
                          Eigen::Vector3f* target_normal) const {
+  uint32_t hint = kNoHint;
+  return MatchWithHint(point, normal, max_distance_m, min_cos_normal_angle, min_planarity,
+                       target_point, target_normal, &hint);
+}
+
+bool KdTreeTarget::MatchWithHint(const Eigen::Vector3f& point,
+                                 const Eigen::Vector3f& normal,
+                                 float max_distance_m,
+                                 float min_cos_normal_angle,
+                                 float min_planarity,
+                                 Eigen::Vector3f* target_point,
+                                 Eigen::Vector3f* target_normal,
+                                 uint32_t* hint) const {
+  // The nearest point is at most as far as the previous match: a tighter bound
+  // prunes most of the tree walk once the estimate settles (same result).
+  float bound = max_distance_m * max_distance_m;
+  // (Relaxed by 1e-4 relative so that rounding differences between this distance
+  // and the tree's own cannot exclude the previous match itself.)
+  if (*hint < tree_.size()) {
+    bound = std::min(bound, (tree_.points()[*hint] - point).squaredNorm() * 1.0001f + 1e-12f);
+  }
   uint32_t index = 0;
   float sq_dist = 0;
-  if (!tree_.NearestWithin(point, max_distance_m * max_distance_m, &index, &sq_dist)) return false;
+  if (!tree_.NearestWithin(point, bound, &index, &sq_dist)) return false;
+  *hint = index;
   Eigen::Vector3f n;
   float planarity = 0.f;
   NormalAt(index, &n, &planarity);
@@ -311,18 +396,12 @@ LinearizationContext::LinearizationContext(const SE3& T, const IcpOptions& optio
       kernel(RobustKernelFromString(options.kernel)),
       kernel_scale_m(options.kernel_scale_m) {}
 
-bool LinearizePoint(const IcpTarget& target,
-                    const LinearizationContext& ctx,
+void LinearizeMatch(const LinearizationContext& ctx,
                     const Eigen::Vector3f& p,
-                    const Eigen::Vector3f& n,
+                    const Eigen::Vector3f& q,
+                    const Eigen::Vector3f& nq,
                     LinearizedTerm* term) {
   const Eigen::Vector3f p_t = ctx.rotation_f * p + ctx.translation_f;
-  const Eigen::Vector3f n_t = ctx.rotation_f * n;
-  Eigen::Vector3f q, nq;
-  if (!target.Match(p_t, n_t, ctx.max_distance_m, ctx.min_cos_normal_angle, ctx.min_planarity,
-                    &q, &nq)) {
-    return false;
-  }
   // Residual in double from float inputs: r = n^T (T p - q), J = [(p x m)^T, m^T].
   const Eigen::Vector3d nd = nq.cast<double>();
   term->residual = nd.dot((p_t - q).cast<double>());
@@ -330,6 +409,29 @@ bool LinearizePoint(const IcpTarget& target,
   const Eigen::Vector3f pxm = p.cross(m);
   term->jacobian << pxm.x(), pxm.y(), pxm.z(), m.x(), m.y(), m.z();
   term->weight = RobustWeight(ctx.kernel, term->residual, ctx.kernel_scale_m);
+}
+
+bool LinearizePoint(const IcpTarget& target,
+                    const LinearizationContext& ctx,
+                    const Eigen::Vector3f& p,
+                    const Eigen::Vector3f& n,
+                    LinearizedTerm* term,
+                    Eigen::Vector3f* target_point,
+                    Eigen::Vector3f* target_normal,
+                    uint32_t* hint) {
+  const Eigen::Vector3f p_t = ctx.rotation_f * p + ctx.translation_f;
+  const Eigen::Vector3f n_t = ctx.rotation_f * n;
+  Eigen::Vector3f q, nq;
+  const bool matched =
+      hint != nullptr
+          ? target.MatchWithHint(p_t, n_t, ctx.max_distance_m, ctx.min_cos_normal_angle,
+                                 ctx.min_planarity, &q, &nq, hint)
+          : target.Match(p_t, n_t, ctx.max_distance_m, ctx.min_cos_normal_angle, ctx.min_planarity,
+                         &q, &nq);
+  if (!matched) return false;
+  LinearizeMatch(ctx, p, q, nq, term);
+  if (target_point != nullptr) *target_point = q;
+  if (target_normal != nullptr) *target_normal = nq;
   return true;
 }
 
@@ -394,28 +496,85 @@ IcpResult RegisterPointToPlane(const PointSet& source,
   size_t level = 0;
   size_t stride = strides[0];
   SE3 last_linearized = initial;
+  MatchCache cache(options.max_inner_iterations > 0 ? source.size() : 0);
+  // Per source point: the target index of its last match (warm start).
+  std::vector<uint32_t> hints(source.size(), IcpTarget::kNoHint);
+  constexpr double kMaxExtrapolation = 4.0;
+  bool last_extrapolated = false;
+  size_t prev_stride = 0;
+  Vec6 prev_scaled_step = Vec6::Zero();
+  // L: RMS distance of the source points from their centroid (m), scales rotations.
+  double source_scale = 1.0;
+  {
+    Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+    double sq = 0;
+    for (const auto& p : source) {
+      sum += p.cast<double>();
+      sq += p.cast<double>().squaredNorm();
+    }
+    const double n = static_cast<double>(source.size());
+    source_scale = std::sqrt(std::max(sq / n - (sum / n).squaredNorm(), 1e-12));
+  }
   for (int iteration = 0; iteration < options.max_iterations; ++iteration) {
     const internal::LinearizationContext ctx(result.target_from_source, options);
     last_linearized = result.target_from_source;
-    acc = Linearize<false>(source, source_normals, target, ctx, stride);
+    acc = Linearize<false>(source, source_normals, target, ctx, stride,
+                           options.max_inner_iterations > 0 ? &cache : nullptr,
+                           &hints);
     result.iterations = iteration + 1;
-    if (acc.count < static_cast<size_t>(options.min_inliers)) {
-      if (stride > 1) {
+    Vec6 step;
+    if (!SolveStep(acc, options.min_inliers, &step)) {
+      if (acc.count < static_cast<size_t>(options.min_inliers) && stride > 1) {
         level = strides.size() - 1;
         stride = 1;
         continue;
       }
       break;
     }
-    // Tiny Levenberg damping keeps degenerate directions from exploding; it is
-    // 1e-9 of the mean diagonal, far below any observable direction.
-    Mat6 damped = acc.hessian;
-    damped.diagonal().array() += 1e-9 * acc.hessian.trace() / 6.0 + 1e-12;
-    const Vec6 step = -damped.ldlt().solve(acc.gradient);
-    if (!step.allFinite()) break;
     result.target_from_source = result.target_from_source * SE3::Exp(step);
-    const double rotation_step = step.head<3>().norm();
-    const double translation_step = step.tail<3>().norm();
+    // Re-solves on the fixed matches (IRLS re-weighting and the rotation's
+    // nonlinearity) until a step falls below the convergence thresholds: far
+    // cheaper than an association, and the fixed point is unchanged.
+    for (int inner = 0; inner < options.max_inner_iterations; ++inner) {
+      if (step.head<3>().norm() < options.convergence_rotation_rad &&
+          step.tail<3>().norm() < options.convergence_translation_m) {
+        break;
+      }
+      const internal::LinearizationContext inner_ctx(result.target_from_source, options);
+      if (!SolveStep(LinearizeCached<false>(source, cache, inner_ctx, stride), options.min_inliers,
+                     &step)) {
+        break;
+      }
+      result.target_from_source = result.target_from_source * SE3::Exp(step);
+    }
+    // The step of this association: from the linearisation point to the new estimate.
+    const Vec6 total_step = (last_linearized.Inverse() * result.target_from_source).Log();
+    const double rotation_step = total_step.head<3>().norm();
+    const double translation_step = total_step.tail<3>().norm();
+    // Besl & McKay (1992, Sec. IV-C) acceleration: ICP converges linearly, so
+    // when two successive steps point the same way (within 10 deg, in the
+    // scaled space [L omega; v]) and shrink by rho < 1, jump ahead by the rest of
+    // the geometric series, rho / (1 - rho) steps (at most kMaxExtrapolation).
+    // The jump is only taken after the convergence test (so convergence is
+    // always decided by a plain step) and never twice in a row.
+    Vec6 scaled_step;
+    scaled_step << source_scale * total_step.head<3>(), total_step.tail<3>();
+    bool extrapolated = false;
+    const bool small = rotation_step < options.convergence_rotation_rad &&
+                       translation_step < options.convergence_translation_m;
+    if (!small && !last_extrapolated && prev_stride == stride && prev_scaled_step.norm() > 0) {
+      const double cos_angle =
+          scaled_step.dot(prev_scaled_step) / (scaled_step.norm() * prev_scaled_step.norm());
+      const double rho = scaled_step.norm() / prev_scaled_step.norm();
+      if (cos_angle > std::cos(10.0 * kDegToRad) && rho < 1.0) {
+        const double factor = std::min(rho / (1.0 - rho), kMaxExtrapolation);
+        result.target_from_source = result.target_from_source * SE3::Exp(factor * total_step);
+        extrapolated = true;
+      }
+    }
+    last_extrapolated = extrapolated;
+    prev_scaled_step = scaled_step;
+    prev_stride = stride;
     if (stride > 1) {
       if (rotation_step < 10 * options.convergence_rotation_rad &&
           translation_step < 10 * options.convergence_translation_m) {
@@ -423,19 +582,27 @@ IcpResult RegisterPointToPlane(const PointSet& source,
       }
       continue;
     }
-    if (rotation_step < options.convergence_rotation_rad &&
-        translation_step < options.convergence_translation_m) {
+    if (small) {
       small_step = true;
       break;
     }
   }
-  // Statistics and the Hessian at the returned estimate (one more association).
-  // (After a loop that ended without a small step at full resolution: the
-  // statistics of its last linearisation, recomputed with the full sums.)
-  acc = Linearize<true>(source, source_normals, target,
-                        internal::LinearizationContext(
-                            small_step || stride > 1 ? result.target_from_source : last_linearized,
-                            options));
+  // Statistics and the Hessian at the returned estimate. After convergence with
+  // cached matches: over the matches of the last association, which was made
+  // within the convergence thresholds of the estimate (re-associating there would
+  // change almost no match, at the cost of a full nearest-neighbour pass).
+  // Otherwise one more association at the estimate (or, after a loop that ended
+  // without a small step at full resolution, at its last linearisation point).
+  if (small_step && options.max_inner_iterations > 0) {
+    acc = LinearizeCached<true>(source, cache,
+                                internal::LinearizationContext(result.target_from_source, options), 1);
+  } else {
+    acc = Linearize<true>(source, source_normals, target,
+                          internal::LinearizationContext(
+                              small_step || stride > 1 ? result.target_from_source : last_linearized,
+                              options),
+                          1, nullptr, &hints);
+  }
   result.num_inliers = acc.count;
   result.hessian = acc.hessian;
   result.gradient_outer = acc.gradient_outer;

@@ -9,12 +9,20 @@
 // With T = T_hat Exp(xi) and Exp(xi) p ~ p + omega x p + v, and m = R_hat^T n:
 //   r(xi) ~ r + m^T(-[p]x omega + v)   =>   J = [ (p x m)^T , m^T ]   (1x6).
 // This is the A_i = n_i^T [-[p_i]x  I] written in the source frame (the
-// right perturbation). Each iteration solves the 6x6 normal equations
+// right perturbation). Each iteration (one association of every source point of
+// the current level) solves the 6x6 normal equations
 // (sum w J^T J) xi = -(sum w J^T r) by Cholesky (LDLT with a tiny Levenberg
-// damping so that degenerate directions do not blow up), then T <- T Exp(xi).
-// Weights w come from the robust kernel (IRLS). Correspondences are rejected by
-// distance |Tp - q| > max_correspondence_distance_m, by the normal angle when
-// source normals are given, and by target planarity.
+// damping so that degenerate directions do not blow up), then T <- T Exp(xi),
+// and re-solves up to max_inner_iterations times on the same matches (IRLS
+// re-weighting; no nearest-neighbour search) until a step is below the
+// convergence thresholds. Weights w come from the robust kernel (IRLS).
+// Correspondences are rejected by distance |Tp - q| > max_correspondence_distance_m,
+// by the normal angle when source normals are given, and by target planarity.
+// Speed: coarse-to-fine source subsets (coarse_stride), a warm-started nearest
+// neighbour search (IcpTarget::MatchWithHint), and the Besl & McKay (1992)
+// extrapolation of aligned, shrinking successive steps (see icp.cc); none of
+// them changes the fixed point, only how fast it is reached. Convergence is
+// always decided by a plain step of an association at full resolution.
 //
 // Failures: bad user input (empty, tiny or non-finite clouds, size mismatches)
 // throws InputError; an unusable solve (too few inliers) is a value:
@@ -50,7 +58,8 @@ double RobustWeight(RobustKernel kernel, double r, double k);
 double RobustLoss(RobustKernel kernel, double r, double k);
 
 struct IcpOptions {
-  int max_iterations = 50;                   // Gauss-Newton iterations
+  int max_iterations = 50;                   // associations (outer iterations), each + a Gauss-Newton solve
+  int max_inner_iterations = 5;              // extra GN/IRLS solves on the same matches per association (0 = none)
   double max_correspondence_distance_m = 1.0;  // reject |Tp - q| above this (m)
   double max_normal_angle_deg = 45.0;        // reject when source/target normals differ more (deg; used when source normals are given)
   double min_planarity = 0.0;                // ignore target points with lower planarity, [0, 1]
@@ -79,6 +88,23 @@ class IcpTarget {
                      Eigen::Vector3f* target_point,
                      Eigen::Vector3f* target_normal) const = 0;
   virtual size_t size() const = 0;
+  // Match() with a warm start: *hint is the target index of this source point's
+  // previous match (kNoHint if none) and is updated on success. The result must
+  // equal Match()'s; targets that index points override it to search faster
+  // (KdTreeTarget: the distance to the previous match bounds the search). The
+  // default ignores the hint.
+  static constexpr uint32_t kNoHint = 0xffffffffu;
+  virtual bool MatchWithHint(const Eigen::Vector3f& point,
+                             const Eigen::Vector3f& normal,
+                             float max_distance_m,
+                             float min_cos_normal_angle,
+                             float min_planarity,
+                             Eigen::Vector3f* target_point,
+                             Eigen::Vector3f* target_normal,
+                             uint32_t* /*hint*/) const {
+    return Match(point, normal, max_distance_m, min_cos_normal_angle, min_planarity, target_point,
+                 target_normal);
+  }
 };
 
 // Unorganised clouds (LiDAR): nearest neighbour in a KD-tree.
@@ -107,6 +133,14 @@ class KdTreeTarget : public IcpTarget {
              float min_planarity,
              Eigen::Vector3f* target_point,
              Eigen::Vector3f* target_normal) const override;
+  bool MatchWithHint(const Eigen::Vector3f& point,
+                     const Eigen::Vector3f& normal,
+                     float max_distance_m,
+                     float min_cos_normal_angle,
+                     float min_planarity,
+                     Eigen::Vector3f* target_point,
+                     Eigen::Vector3f* target_normal,
+                     uint32_t* hint) const override;
   size_t size() const override { return tree_.size(); }
   const KdTree& tree() const { return tree_; }
   // Unit normal (zero when invalid) and planarity of target point `index`,
@@ -158,11 +192,14 @@ struct IcpResult {
   SE3 target_from_source;
   bool converged = false;   // step below the thresholds, enough inliers, not degenerate
   bool degenerate = false;  // Hessian min/max eigenvalue ratios below threshold (IcpOptions)
-  int iterations = 0;
+  int iterations = 0;       // associations (outer iterations)
   size_t num_inliers = 0;
   double rmse_m = 0;               // RMS point-to-plane residual of the inliers (m)
   double residual_variance_m2 = 0;  // sum w r^2 / (N - 6), the closed form's sigma^2
-  Mat6 hessian = Mat6::Zero();      // sum w J^T J (xi on the right) at the estimate (last linearisation if not converged)
+  // sum w J^T J (xi on the right) at the estimate over the matches of the last
+  // association (made within the convergence thresholds of it); if not converged,
+  // at the last linearisation point with fresh matches.
+  Mat6 hessian = Mat6::Zero();
   Mat6 gradient_outer = Mat6::Zero();  // sum w^2 r^2 J^T J (Censi/sandwich "meat")
   Vec6 scaled_eigenvalues = Vec6::Zero();  // eigenvalues of D H D, D = diag(1/L I3, I3), ascending
   double characteristic_length_m = 1;  // L: RMS distance of inlier source points from their centroid

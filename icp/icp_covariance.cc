@@ -1,12 +1,18 @@
 #include "icp/icp_covariance.h"
 
 #include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <unordered_map>
 
 #include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
 #include <fmt/format.h>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
 
 #include "core/errors.h"
+#include "icp/icp_internal.h"
 
 namespace lisfm {
 
@@ -30,6 +36,153 @@ Mat6 ClosedFormCovariance(const IcpResult& result) {
 Mat6 CensiCovariance(const IcpResult& result) {
   const Mat6 h_inv = SafeInverse(result.hessian);
   return h_inv * result.gradient_outer * h_inv;
+}
+
+namespace {
+
+uint64_t CellKey(const Eigen::Vector3f& p, double cell_size_m) {
+  // 21 bits per axis (cells within +-1e6 cell edges of the origin).
+  uint64_t key = 0;
+  for (int k = 0; k < 3; ++k) {
+    const int64_t v = static_cast<int64_t>(std::floor(p(k) / cell_size_m));
+    key = (key << 21) | (static_cast<uint64_t>(v + (int64_t{1} << 20)) & ((uint64_t{1} << 21) - 1));
+  }
+  return key;
+}
+
+size_t CountCells(const PointSet& points, double cell_size_m, std::vector<uint64_t>* keys) {
+  keys->resize(points.size());
+  for (size_t i = 0; i < points.size(); ++i) (*keys)[i] = CellKey(points[i], cell_size_m);
+  std::sort(keys->begin(), keys->end());
+  return static_cast<size_t>(std::unique(keys->begin(), keys->end()) - keys->begin());
+}
+
+}  // namespace
+
+double CellSizeForClusterCount(const PointSet& points, size_t num_cells) {
+  if (points.empty()) throw InputError("points", "", "expected a non-empty cloud, found none");
+  Eigen::Vector3f lo = points[0], hi = points[0];
+  for (const Eigen::Vector3f& p : points) {
+    if (!p.allFinite()) {
+      throw InputError("points", "", "expected finite coordinates, found NaN/inf");
+    }
+    lo = lo.cwiseMin(p);
+    hi = hi.cwiseMax(p);
+  }
+  // Counting on at most ~4096 evenly strided points: the occupancy of a grid with a
+  // few dozen cells (hundreds of points each) is the same, at a fraction of the cost.
+  const size_t stride = std::max<size_t>(1, points.size() / 4096);
+  PointSet subset;
+  subset.reserve(points.size() / stride + 1);
+  for (size_t i = 0; i < points.size(); i += stride) subset.push_back(points[i]);
+  std::vector<uint64_t> keys;
+  double small = 0.01, large = std::max(0.02, static_cast<double>((hi - lo).norm()));
+  if (CountCells(subset, small, &keys) < num_cells) return small;
+  if (CountCells(subset, large, &keys) >= num_cells) return large;
+  // Invariant: cells(small) >= num_cells > cells(large) (one or a few cells at the diagonal).
+  for (int it = 0; it < 16; ++it) {
+    const double mid = std::sqrt(small * large);
+    (CountCells(subset, mid, &keys) >= num_cells ? small : large) = mid;
+  }
+  return small;
+}
+
+ClusterSandwich ComputeClusterSandwich(const PointSet& source,
+                                       const IcpTarget& target,
+                                       const SE3& target_from_source,
+                                       const IcpOptions& options,
+                                       double cell_size_m,
+                                       const std::vector<Eigen::Vector3f>& source_normals) {
+  CheckIcpSource(source, source_normals);
+  THROW_CHECK_MSG(options.Check(), "invalid IcpOptions");
+  THROW_CHECK_GE(cell_size_m, 0.0);
+  const size_t n = source.size();
+  const internal::LinearizationContext ctx(target_from_source, options);
+  std::vector<internal::LinearizedTerm> terms(n);
+  std::vector<uint8_t> valid(n, 0);
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, n, 512), [&](const tbb::blocked_range<size_t>& r) {
+    for (size_t i = r.begin(); i != r.end(); ++i) {
+      const Eigen::Vector3f nrm =
+          source_normals.empty() ? Eigen::Vector3f::Zero() : source_normals[i];
+      valid[i] = internal::LinearizePoint(target, ctx, source[i], nrm, &terms[i]) ? 1 : 0;
+    }
+  });
+  // Serial accumulation in point order: deterministic, independent of threads.
+  ClusterSandwich out;
+  std::unordered_map<uint64_t, size_t> cell_index;
+  std::vector<Vec6> cell_scores;
+  std::vector<Mat6> cell_hessians;
+  double weighted_sq = 0;
+  for (size_t i = 0; i < n; ++i) {
+    if (!valid[i]) continue;
+    const internal::LinearizedTerm& t = terms[i];
+    out.hessian.noalias() += t.jacobian.transpose() * t.jacobian * t.weight;
+    weighted_sq += t.weight * t.residual * t.residual;
+    ++out.num_terms;
+    size_t c = cell_scores.size();
+    if (cell_size_m > 0) {
+      c = cell_index.emplace(CellKey(source[i], cell_size_m), cell_scores.size()).first->second;
+    }
+    if (c == cell_scores.size()) {
+      cell_scores.push_back(Vec6::Zero());
+      cell_hessians.push_back(Mat6::Zero());
+    }
+    cell_scores[c] += t.jacobian.transpose() * (t.weight * t.residual);
+    cell_hessians[c].noalias() += t.jacobian.transpose() * t.jacobian * t.weight;
+  }
+  out.num_clusters = cell_scores.size();
+  if (out.num_terms < 7 || out.num_clusters < 2) {
+    throw InputError("ICP correspondences", "",
+                     fmt::format("expected at least 7 matches in 2 cells for a cluster sandwich, "
+                                 "found {} matches in {} cells",
+                                 out.num_terms, out.num_clusters));
+  }
+  for (const Vec6& g : cell_scores) out.meat.noalias() += g * g.transpose();
+  const double g = static_cast<double>(out.num_clusters);
+  out.meat *= g / (g - 1.0);
+  out.residual_variance_m2 = weighted_sq / (static_cast<double>(out.num_terms) - 6.0);
+  const Mat6 h_inv = SafeInverse(out.hessian);
+  out.covariance = h_inv * out.meat * h_inv;
+  // Whitening H = B B^T, B = V diag(sqrt l), W = B^-1 = diag(1/sqrt l) V^T (rows of
+  // directions without curvature, as SafeInverse, set to zero): H^-1 = W^T W.
+  const Eigen::SelfAdjointEigenSolver<Mat6> eig(out.hessian);
+  const Vec6 l = eig.eigenvalues();
+  const double floor = std::max(l(5), 0.0) * 1e-12;
+  Mat6 W = Mat6::Zero();
+  Mat6 null_space = Mat6::Zero();
+  int used = 0;
+  for (int k = 0; k < 6; ++k) {
+    if (l(k) > floor && l(k) > 0) {
+      W.row(k) = eig.eigenvectors().col(k).transpose() / std::sqrt(l(k));
+      ++used;
+    } else {
+      null_space += 1e12 * eig.eigenvectors().col(k) * eig.eigenvectors().col(k).transpose();
+    }
+  }
+  const Mat6 meat_w = W * out.meat * W.transpose();
+  // Cluster jackknife (CR3): delta_c = (H - H_c)^-1 g_c = W^T (I - A_c)^-1 W g_c with the
+  // cluster's leverage A_c = W H_c W^T (exact for a linear model; CR3 in Cameron &
+  // Miller 2015, the few-clusters section); eigenvalues of A_c are capped at kMaxLeverage so that a cell
+  // that alone determines a direction gives a large, finite delta.
+  constexpr double kMaxLeverage = 0.95;
+  std::vector<Vec6> deltas(out.num_clusters);
+  Vec6 delta_mean = Vec6::Zero();
+  for (size_t c = 0; c < out.num_clusters; ++c) {
+    const Eigen::SelfAdjointEigenSolver<Mat6> a(W * cell_hessians[c] * W.transpose());
+    const Vec6 keep = (1.0 - a.eigenvalues().array().min(kMaxLeverage)).inverse().matrix();
+    deltas[c] = a.eigenvectors() * keep.asDiagonal() * a.eigenvectors().transpose() *
+                (W * cell_scores[c]);
+    delta_mean += deltas[c];
+  }
+  delta_mean /= g;
+  Mat6 jack_w = Mat6::Zero();
+  for (const Vec6& d : deltas) jack_w.noalias() += (d - delta_mean) * (d - delta_mean).transpose();
+  jack_w *= (g - 1.0) / g;
+  out.jackknife_covariance = W.transpose() * jack_w * W + null_space;
+  const int n_used = std::max(used, 1);
+  out.effective_variance_cr1_m2 = meat_w.trace() / n_used;
+  out.effective_variance_m2 = jack_w.trace() / n_used;
+  return out;
 }
 
 CalibrationStats EvaluateCovarianceCalibration(const std::vector<CovarianceSample>& samples) {

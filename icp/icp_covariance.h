@@ -9,11 +9,22 @@
 //    Censi (ICRA 2007) with each correspondence's own squared residual as its
 //    variance (heteroscedasticity-consistent); valid for point-to-plane
 //    (Bonnabel et al. 2016).
+//  - ClusterSandwich: the cluster-robust ("block") sandwich H^-1 M_c H^-1 with
+//    M_c = G/(G-1) sum_c g_c g_c^T, g_c the summed score w r J^T of the
+//    correspondences whose source point lies in spatial cell c (Liang & Zeger 1986;
+//    Cameron & Miller 2015, "CR1" with the small-sample factor G/(G-1)). It
+//    stays valid when residuals are correlated within a cell (shared target normals,
+//    voxel centroids, the two scans sampling the same surface differently), which
+//    is what dominates the error of LiDAR ICP; the Censi form is its 1-point-cell
+//    special case. Also computed: the delete-one-cluster jackknife (CR3), and the
+//    scalar "effective variance" that Bayesian ICP tempers its likelihood to.
 // Unobservable directions (eigenvalues of H below 1e-12 of the largest) are given
 // a variance of 1e12 (m^2 / rad^2) instead of an exception: "unknown".
 #pragma once
 
 #include <vector>
+
+#include <Eigen/Core>
 
 #include "core/geometry.h"
 #include "icp/icp.h"
@@ -25,6 +36,60 @@ Mat6 CensiCovariance(const IcpResult& result);
 
 // Inverse of a symmetric PSD 6x6 with the 1e12 rule above.
 Mat6 SafeInverse(const Mat6& information);
+
+struct ClusterSandwich {
+  Mat6 hessian = Mat6::Zero();     // H = sum w J^T J over the matched source points
+  Mat6 meat = Mat6::Zero();        // M_c = G/(G-1) sum_c g_c g_c^T, g_c = sum_{i in c} w r J^T
+  Mat6 covariance = Mat6::Zero();  // CR1: H^-1 M_c H^-1 (SafeInverse), right perturbation
+  // CR3, the delete-one-cluster jackknife (G-1)/G sum_c (d_c - mean d)(d_c - mean d)^T
+  // with d_c = (H - H_c)^-1 g_c the one-step change of the estimate when cluster c is
+  // left out (exact for a linear model; H_c the cluster's own sum w J^T J, its
+  // whitened leverage capped at 0.95). Unlike CR1 it does not shrink when a few
+  // large clusters dominate a direction (the residuals there were fitted by it).
+  Mat6 jackknife_covariance = Mat6::Zero();
+  size_t num_terms = 0;            // matched source points
+  size_t num_clusters = 0;         // G: occupied cells with at least one match
+  double residual_variance_m2 = 0;   // sum w r^2 / (N - 6): the i.i.d. sigma^2
+  // Per-correspondence variance (m^2) that makes the i.i.d. likelihood reproduce a
+  // sandwich S on average: sigma^2 = tr(H S) / 6, the mean eigenvalue of S in the
+  // metric of H (directions without curvature left out). A likelihood
+  // exp(-sum w r^2 / (2 sigma^2)) has Laplace covariance sigma^2 H^-1, whose
+  // expected NEES against errors ~ N(0, S) is then exactly 6. For independent
+  // homoscedastic residuals it equals residual_variance_m2 (up to N/(N-6) and the
+  // weights); larger when neighbouring residuals are correlated. A scalar uses all
+  // G x 6 cluster scores at once, so it stays stable with G ~ 20 clusters where the
+  // 6x6 matrix S itself is far too noisy to use (docs: bench_icp_covariance.sh).
+  double effective_variance_m2 = 0;            // from the jackknife (CR3), used by RegisterBayesian
+  double effective_variance_cr1_m2 = 0;        // from CR1: tr(H^-1 M_c) / 6
+};
+
+// The edge (m) of a coarse cubic grid (origin-anchored, source frame) whose
+// occupied cells number at least `num_cells`, with fewer cells at a slightly larger
+// edge (the count is not monotone in the edge, so this is one crossing, close to
+// but not always exactly the coarsest such grid): bisection on log(edge) over
+// [1 cm, bounding-box diagonal], 16 steps (relative precision ~1e-4 of the log
+// range, i.e. < 0.2 % of the edge for diagonals up to 1 km); cells are counted
+// over at most ~4096 evenly strided points of the cloud. Used to
+// partition a scan into a fixed number of large spatial clusters, which keeps the
+// cluster sandwich meaningful when the error correlation spans whole surfaces
+// (Bester, Conley & Hansen, J. Econometrics 2011: few large groups for spatially
+// dependent data). Throws InputError for an empty or non-finite cloud; returns
+// 1 cm when even that gives fewer cells, and the diagonal when even that gives
+// num_cells or more (a cloud around the origin spans up to 8 octants).
+double CellSizeForClusterCount(const PointSet& points, size_t num_cells);
+
+// Re-associates every source point at `target_from_source` (same association,
+// rejection and robust weights as RegisterPointToPlane with `options`), groups the
+// matches by the cubic cell of edge `cell_size_m` (source frame) that holds the
+// source point, and returns the cluster-robust sandwich (CR1 and jackknife).
+// cell_size_m = 0 puts every point in its own cluster (the Censi/HC1 form). Throws InputError for bad clouds (as
+// RegisterPointToPlane) and when fewer than 7 points or 2 clusters match.
+ClusterSandwich ComputeClusterSandwich(const PointSet& source,
+                                       const IcpTarget& target,
+                                       const SE3& target_from_source,
+                                       const IcpOptions& options,
+                                       double cell_size_m,
+                                       const std::vector<Eigen::Vector3f>& source_normals = {});
 
 // One registration outcome for calibration: estimate, its covariance (right
 // perturbation) and the true transform.

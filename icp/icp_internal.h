@@ -2,6 +2,7 @@
 // and the Bayesian sampler. Internal to lisfm_icp (not a public API).
 #pragma once
 
+#include <cstdint>
 #include <vector>
 
 #include "icp/icp.h"
@@ -29,11 +30,24 @@ struct LinearizedTerm {
 };
 
 // Associates source point p (normal n, zero if unknown) under ctx and linearises.
-// Returns false when the point has no admissible match.
+// Returns false when the point has no admissible match; otherwise also returns
+// the match (target point and unit normal, target frame) where asked. hint:
+// optional warm start for IcpTarget::MatchWithHint (updated on a match).
 bool LinearizePoint(const IcpTarget& target,
                     const LinearizationContext& ctx,
                     const Eigen::Vector3f& p,
                     const Eigen::Vector3f& n,
+                    LinearizedTerm* term,
+                    Eigen::Vector3f* target_point = nullptr,
+                    Eigen::Vector3f* target_normal = nullptr,
+                    uint32_t* hint = nullptr);
+
+// Linearises the point-to-plane residual of source point p against a given
+// match (q, unit normal nq) at ctx, without association.
+void LinearizeMatch(const LinearizationContext& ctx,
+                    const Eigen::Vector3f& p,
+                    const Eigen::Vector3f& q,
+                    const Eigen::Vector3f& nq,
                     LinearizedTerm* term);
 
 }  // namespace internal

@@ -14,4 +14,4 @@ cmake -S "$LISFM_ROOT" -B "$LISFM_BUILD_DIR" -DCMAKE_BUILD_TYPE=Release \
   || { cat "$LISFM_BUILD_DIR/cmake.log"; exit 1; }
 cmake --build "$LISFM_BUILD_DIR" --target lisfm_icp_bench -j"$LISFM_JOBS"
 echo "CPU: $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | xargs), $(nproc) threads; $(uptime)"
-"$LISFM_BUILD_DIR/icp/lisfm_icp_bench" "$LISFM_SHARED_DATA" "$REPEATS" --knn
+"$LISFM_BUILD_DIR/icp/lisfm_icp_bench" "$LISFM_SHARED_DATA" "$REPEATS" --knn --stages

