@@ -117,6 +117,12 @@ TEST(Database, CreatesCOLMAP38SchemaAndRoundTripsEverything) {
     MatchesBlob swapped(3, 2);
     swapped << 10, 0, 11, 1, 12, 2;
     EXPECT_EQ(db.ReadMatches(1, 5), swapped);
+    // Match counts without the blobs: one pair with 3 matches.
+    const auto counts = db.ReadAllNumMatches();
+    ASSERT_EQ(counts.size(), 1u);
+    EXPECT_EQ(counts.at(ImagePairToPairId(1, 5)), 3u);
+    EXPECT_EQ(counts.at(ImagePairToPairId(1, 5)),
+              static_cast<size_t>(db.ReadAllMatches().front().second.rows()));
     const TwoViewGeometry same = db.ReadTwoViewGeometry(1, 5);
     EXPECT_EQ(same.F, g.F);
     EXPECT_EQ(same.qvec, g.qvec);
