@@ -1,6 +1,5 @@
 #include "colmap_ext/view_graph.h"
 
-#include <ceres/ceres.h>
 #include <oneapi/tbb/parallel_for.h>
 #include <oneapi/tbb/task_arena.h>
 
@@ -54,59 +53,122 @@ Mat3 EssentialFromPose(const SE3& cam2_from_cam1) {
   return Hat(cam2_from_cam1.translation()) * cam2_from_cam1.RotationMatrix();
 }
 
-// Residual of one correspondence for the (R, t) refinement: q is an Eigen
-// quaternion (x, y, z, w) and t a unit 3-vector; E = [t]_x R.
-struct SampsonCost {
-  SampsonCost(const Vec2& x1, const Vec2& x2) : x1_(x1), x2_(x2) {}
-  template <typename T>
-  bool operator()(const T* q, const T* t, T* residual) const {
-    const Eigen::Map<const Eigen::Quaternion<T>> rotation(q);
-    const Eigen::Matrix<T, 3, 1> translation(t[0], t[1], t[2]);
-    Eigen::Matrix<T, 3, 3> tx;
-    tx << T(0), -translation(2), translation(1), translation(2), T(0),
-        -translation(0), -translation(1), translation(0), T(0);
-    const Eigen::Matrix<T, 3, 3> E = tx * rotation.toRotationMatrix();
-    residual[0] = SampsonResidual<T>(E, x1_, x2_);
-    return true;
-  }
-  static ceres::CostFunction* Create(const Vec2& x1, const Vec2& x2) {
-    return new ceres::AutoDiffCostFunction<SampsonCost, 1, 4, 3>(
-        new SampsonCost(x1, x2));
-  }
-  Vec2 x1_, x2_;
-};
+}  // namespace
 
-// Robust least-squares polish of cam2_from_cam1 (|t| = 1) on the Sampson
-// error of the given correspondences. The Cauchy scale is a quarter of the
-// inlier threshold (1 px at the defaults, about the keypoint noise), so that
-// wrong matches that slipped under the threshold barely pull the pose.
+double SampsonResidual(const Mat3& E, const Vec2& x1, const Vec2& x2) {
+  return SampsonResidual<double>(E, x1, x2);
+}
+
+double SampsonCost(const SE3& cam2_from_cam1,
+                   const std::vector<Vec2>& x1,
+                   const std::vector<Vec2>& x2,
+                   double loss_scale) {
+  THROW_CHECK_EQ(x1.size(), x2.size());
+  const Mat3 E = EssentialFromPose(
+      SE3(cam2_from_cam1.rotation(), cam2_from_cam1.translation().normalized()));
+  const double c2 = loss_scale * loss_scale;
+  double cost = 0.0;
+  for (size_t i = 0; i < x1.size(); ++i) {
+    const double r = SampsonResidual<double>(E, x1[i], x2[i]);
+    cost += 0.5 * c2 * std::log1p(r * r / c2);
+  }
+  return cost;
+}
+
+// Levenberg-Marquardt with analytic Jacobians. Residual r = n / sqrt(d) with
+// n = h2^T E h1, a = E h1, b = E^T h2, d = a0^2 + a1^2 + b0^2 + b1^2, so
+// dr/dE = h2 h1^T / sqrt(d) - n / (2 d^1.5) dd/dE with dd/dE_kl = 2 a_k h1_l
+// (k < 2) + 2 h2_k b_l (l < 2). Parameters: R <- Exp(dtheta) R (E = [t]x R:
+// dE/dtheta_j = [t]x [e_j]x R) and t <- normalise(t + B beta) with B an
+// orthonormal basis of the plane orthogonal to t (dE/dbeta_m = [b_m]x R);
+// <G, [v]x M> = v . vee(G M^T - M G^T) turns dr/dE into the 5 derivatives.
+// Cauchy loss by iteratively reweighted least squares.
 SE3 RefineRelativePose(const SE3& initial,
                        const std::vector<Vec2>& x1,
                        const std::vector<Vec2>& x2,
-                       double threshold) {
-  Quat q = initial.rotation();
+                       double loss_scale) {
+  THROW_CHECK_EQ(x1.size(), x2.size());
+  THROW_CHECK_GT(loss_scale, 0.0);
+  const double c2 = loss_scale * loss_scale;
+  Mat3 R = initial.RotationMatrix();
   Vec3 t = initial.translation().normalized();
-  ceres::Problem problem;
-  for (size_t i = 0; i < x1.size(); ++i) {
-    problem.AddResidualBlock(SampsonCost::Create(x1[i], x2[i]),
-                             new ceres::CauchyLoss(0.25 * threshold),
-                             q.coeffs().data(),
-                             t.data());
+  auto vee_skew = [](const Mat3& m) {  // vee(m - m^T)
+    return Vec3(m(2, 1) - m(1, 2), m(0, 2) - m(2, 0), m(1, 0) - m(0, 1));
+  };
+  auto basis = [](const Vec3& v, Vec3* b1, Vec3* b2) {
+    const Vec3 axis = std::abs(v.x()) < 0.9 ? Vec3::UnitX() : Vec3::UnitY();
+    *b1 = v.cross(axis).normalized();
+    *b2 = v.cross(*b1);
+  };
+  auto cost_of = [&](const Mat3& R_, const Vec3& t_) {
+    const Mat3 E = Hat(t_) * R_;
+    double cost = 0.0;
+    for (size_t i = 0; i < x1.size(); ++i) {
+      const double r = SampsonResidual<double>(E, x1[i], x2[i]);
+      cost += 0.5 * c2 * std::log1p(r * r / c2);
+    }
+    return cost;
+  };
+  double cost = cost_of(R, t);
+  double lambda = 1e-4;
+  for (int iteration = 0; iteration < 50; ++iteration) {
+    const Mat3 E = Hat(t) * R;
+    Vec3 b1, b2;
+    basis(t, &b1, &b2);
+    Eigen::Matrix<double, 5, 5> H = Eigen::Matrix<double, 5, 5>::Zero();
+    Eigen::Matrix<double, 5, 1> g = Eigen::Matrix<double, 5, 1>::Zero();
+    for (size_t i = 0; i < x1.size(); ++i) {
+      const Vec3 h1 = x1[i].homogeneous();
+      const Vec3 h2 = x2[i].homogeneous();
+      const Vec3 a = E * h1;
+      const Vec3 b = E.transpose() * h2;
+      const double n = h2.dot(a);
+      const double d = a(0) * a(0) + a(1) * a(1) + b(0) * b(0) + b(1) * b(1) + 1e-30;
+      const double sqrt_d = std::sqrt(d);
+      const double r = n / sqrt_d;
+      Mat3 dd = Mat3::Zero();
+      for (int k = 0; k < 2; ++k) dd.row(k) += 2.0 * a(k) * h1.transpose();
+      for (int l = 0; l < 2; ++l) dd.col(l) += 2.0 * b(l) * h2;
+      const Mat3 G = h2 * h1.transpose() / sqrt_d - n / (2.0 * d * sqrt_d) * dd;
+      Eigen::Matrix<double, 1, 5> J;
+      // d r / d theta_j = <G, [t]x [e_j]x R> = <-[t]x G R^T, [e_j]x>.
+      J.head<3>() = vee_skew(-Hat(t) * G * R.transpose()).transpose();
+      const Vec3 dv = vee_skew(G * R.transpose());
+      J(3) = b1.dot(dv);
+      J(4) = b2.dot(dv);
+      const double w = 1.0 / (1.0 + r * r / c2);  // Cauchy rho'(r^2)
+      H.noalias() += w * J.transpose() * J;
+      g.noalias() += w * r * J.transpose();
+    }
+    bool improved = false;
+    for (int attempt = 0; attempt < 10 && !improved; ++attempt) {
+      Eigen::Matrix<double, 5, 5> damped = H;
+      damped.diagonal() += lambda * H.diagonal().cwiseMax(1e-12);
+      const Eigen::Matrix<double, 5, 1> step = damped.ldlt().solve(-g);
+      if (!step.allFinite()) return SE3(Quat(R).normalized(), t);
+      const Mat3 R_new = so3::ExpMatrix(step.head<3>()) * R;
+      const Vec3 t_new = (t + step(3) * b1 + step(4) * b2).normalized();
+      const double cost_new = cost_of(R_new, t_new);
+      if (cost_new < cost) {
+        const double decrease = cost - cost_new;
+        R = R_new;
+        t = t_new;
+        cost = cost_new;
+        lambda = std::max(lambda * 0.1, 1e-12);
+        improved = true;
+        if (decrease <= 1e-10 * cost || step.norm() <= 1e-12) {
+          return SE3(Quat(R).normalized(), t);
+        }
+      } else {
+        lambda *= 10.0;
+      }
+    }
+    if (!improved) break;
   }
-  problem.SetManifold(q.coeffs().data(), new ceres::EigenQuaternionManifold);
-  problem.SetManifold(t.data(), new ceres::SphereManifold<3>);
-  ceres::Solver::Options solver_options;
-  solver_options.linear_solver_type =
-      ceres::DENSE_NORMAL_CHOLESKY;  // 7 parameters
-  solver_options.max_num_iterations = 30;
-  solver_options.num_threads = 1;
-  solver_options.logging_type = ceres::SILENT;
-  solver_options.minimizer_progress_to_stdout = false;
-  ceres::Solver::Summary summary;
-  ceres::Solve(solver_options, &problem, &summary);
-  if (!summary.IsSolutionUsable()) return initial;
-  return SE3(q.normalized(), t.normalized());
+  return SE3(Quat(R).normalized(), t);
 }
+
+namespace {
 
 // Ray angle (rad) between R x1 and x2, used when the two centres coincide.
 double RayAngle(const Mat3& R, const Vec2& x1, const Vec2& x2) {
@@ -253,8 +315,11 @@ std::optional<ViewGraphEdge> ProcessPair(const PairJob& job,
         in1.push_back(job.x1[i]);
         in2.push_back(job.x2[i]);
       }
+      // Cauchy scale: a quarter of the inlier threshold (1 px at the
+      // defaults, about the keypoint noise), so that wrong matches that
+      // slipped under the threshold barely pull the pose.
       cam2_from_cam1 =
-          RefineRelativePose(cam2_from_cam1, in1, in2, job.threshold);
+          RefineRelativePose(cam2_from_cam1, in1, in2, 0.25 * job.threshold);
     }
     edge.cam2_from_cam1 = cam2_from_cam1;
     edge.metric = false;

@@ -94,5 +94,23 @@ ViewGraphStats BuildViewGraph(const Database& database,
 // first (ties: smallest frame id first); frame ids ascend inside each.
 std::vector<std::vector<frame_t>> FrameComponents(const MapperState& state);
 
+// Exposed for tests. Signed Sampson residual (Hartley & Zisserman 2003, Eq.
+// 11.9) of x2^T E x1 = 0 on the normalised plane (its square is the Sampson
+// distance; invariant to the scale of E).
+double SampsonResidual(const Mat3& E, const Vec2& x1, const Vec2& x2);
+// Robust cost sum 0.5 c^2 log(1 + r_i^2 / c^2) (Cauchy, c = loss_scale) of the
+// Sampson residuals for E = [t]x R of cam2_from_cam1 (t normalised).
+double SampsonCost(const SE3& cam2_from_cam1,
+                   const std::vector<Vec2>& x1,
+                   const std::vector<Vec2>& x2,
+                   double loss_scale);
+// Minimises SampsonCost over cam2_from_cam1 (rotation, unit translation) from
+// `initial` by Levenberg-Marquardt with analytic Jacobians; returns the
+// refined pose with |t| = 1 (the start when no step decreases the cost).
+SE3 RefineRelativePose(const SE3& initial,
+                       const std::vector<Vec2>& x1,
+                       const std::vector<Vec2>& x2,
+                       double loss_scale);
+
 }  // namespace colmap
 }  // namespace lisfm
