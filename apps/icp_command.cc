@@ -1,13 +1,16 @@
 // `lisfm icp`: registers a source cloud to a target cloud (PCD/PLY) with
 // point-to-plane ICP or Bayesian ICP and prints T_target_source, its 6x6
 // covariance (right perturbation, xi = [omega; v]), inliers, RMSE and timings.
+#include <algorithm>
 #include <chrono>
 #include <fstream>
 #include <iomanip>
 #include <iostream>
+#include <memory>
 #include <sstream>
 
 #include <fmt/format.h>
+#include <tbb/parallel_invoke.h>
 
 #include "apps/commands.h"
 #include "core/errors.h"
@@ -125,15 +128,36 @@ int RunIcp(int argc, char** argv) {
     throw UsageError("invalid Bayesian.* options (burn_in < iterations, 0 < step_size < 2, ...)");
   }
 
-  const auto t0 = std::chrono::steady_clock::now();
   const SE3 initial = init_path.empty() ? SE3() : ReadTransform(init_path);
-  const PointSet source_full = LoadPoints(source_path);
-  const PointSet target_full = LoadPoints(target_path);
-  const double load_s = Seconds(t0);
-  const auto t1 = std::chrono::steady_clock::now();
-  const PointSet source = VoxelDownsamplePoints(source_full, source_voxel_m);
-  const KdTreeTarget target(VoxelDownsamplePoints(target_full, target_voxel_m), normal_options);
-  const double prep_s = Seconds(t1);
+  // The source chain (load, voxel grid) and the target chain (load, voxel
+  // grid, KD-tree) are independent: one task each, so both cores work.
+  PointSet source;
+  std::unique_ptr<KdTreeTarget> target_ptr;
+  double source_load_s = 0.0, source_prep_s = 0.0, target_load_s = 0.0, target_prep_s = 0.0;
+  size_t source_full_size = 0, target_full_size = 0;
+  tbb::parallel_invoke(
+      [&] {
+        const auto t0 = std::chrono::steady_clock::now();
+        const PointSet full = LoadPoints(source_path);
+        source_full_size = full.size();
+        source_load_s = Seconds(t0);
+        const auto t1 = std::chrono::steady_clock::now();
+        source = VoxelDownsamplePoints(full, source_voxel_m);
+        source_prep_s = Seconds(t1);
+      },
+      [&] {
+        const auto t0 = std::chrono::steady_clock::now();
+        const PointSet full = LoadPoints(target_path);
+        target_full_size = full.size();
+        target_load_s = Seconds(t0);
+        const auto t1 = std::chrono::steady_clock::now();
+        target_ptr = std::make_unique<KdTreeTarget>(VoxelDownsamplePoints(full, target_voxel_m),
+                                                    normal_options);
+        target_prep_s = Seconds(t1);
+      });
+  const KdTreeTarget& target = *target_ptr;
+  const double load_s = std::max(source_load_s, target_load_s);
+  const double prep_s = std::max(source_prep_s, target_prep_s);
   const auto t2 = std::chrono::steady_clock::now();
   IcpResult result;
   Mat6 covariance;
@@ -156,7 +180,8 @@ int RunIcp(int argc, char** argv) {
   std::cout << "T_target_source:\n" << transform_text << "covariance (" << covariance_kind
             << ", xi = [omega; v], rad/m):\n" << covariance_text
             << fmt::format("converged: {}\ndegenerate: {}\niterations: {}\ninliers: {}\nrmse_m: {:.6f}\n"
-                           "time_s: load {:.3f} preprocess {:.3f} registration {:.3f}\n",
+                           "time_s: load {:.3f} preprocess {:.3f} (source and target in "
+                           "parallel; the longer of the two) registration {:.3f}\n",
                            result.converged, result.degenerate, result.iterations,
                            result.num_inliers, result.rmse_m, load_s, prep_s, reg_s);
   // Not converged is a result, not an error: exit 0, but say so loudly.
@@ -180,7 +205,7 @@ int RunIcp(int argc, char** argv) {
   LogInfo("icp ({}): {} source / {} target points after downsampling ({} / {} loaded), {} "
           "inliers, RMSE {:.4f} m, {} iterations, {}{}; load {:.3f} s, preprocess {:.3f} s, "
           "registration {:.3f} s{}",
-          method, source.size(), target.size(), source_full.size(), target_full.size(),
+          method, source.size(), target.size(), source_full_size, target_full_size,
           result.num_inliers, result.rmse_m, result.iterations,
           result.converged ? "converged" : "NOT converged: ", result.converged ? "" : result.message,
           load_s, prep_s, reg_s,

@@ -28,18 +28,29 @@ struct Accumulator {
   double point_sq = 0;  // sum |p|^2
   size_t count = 0;
 
+  // Upper triangle of m += alpha j^T j, element for element the arithmetic of
+  // Eigen's selfadjointView<Upper>().rankUpdate (column c: (alpha j_c) j_r for
+  // r <= c), hence bit-identical sums, without the general product machinery
+  // (which costs more than the 21 multiply-adds themselves at this size).
+  static void UpperRankUpdate(const Eigen::Matrix<double, 1, 6>& j, double alpha, Mat6* m) {
+    for (int c = 0; c < 6; ++c) {
+      const double a = alpha * j(c);
+      for (int r = 0; r <= c; ++r) (*m)(r, c) += a * j(r);
+    }
+  }
+
   // full: also the statistics needed only at the returned estimate (Censi
   // "meat", point spread); the Gauss-Newton iterations need only H, g, counts.
   template <bool full>
   void Add(const internal::LinearizedTerm& t, const Eigen::Vector3f& p) {
     const double wr = t.weight * t.residual;
-    hessian.selfadjointView<Eigen::Upper>().rankUpdate(t.jacobian.transpose(), t.weight);
+    UpperRankUpdate(t.jacobian, t.weight, &hessian);
     gradient += t.jacobian.transpose() * wr;
     weighted_sq += wr * t.residual;
     sq += t.residual * t.residual;
     ++count;
     if (full) {
-      gradient_outer.selfadjointView<Eigen::Upper>().rankUpdate(t.jacobian.transpose(), wr * wr);
+      UpperRankUpdate(t.jacobian, wr * wr, &gradient_outer);
       const Eigen::Vector3d pd = p.cast<double>();
       point_sum += pd;
       point_sq += pd.squaredNorm();
@@ -74,7 +85,7 @@ Accumulator Linearize(const PointSet& source,
                       const internal::LinearizationContext& ctx,
                       size_t stride = 1,
                       MatchCache* cache = nullptr,
-                      std::vector<uint32_t>* hints = nullptr) {
+                      std::vector<IcpTarget::MatchState>* states = nullptr) {
   const bool with_normals = !source_normals.empty();
   const size_t num_used = (source.size() + stride - 1) / stride;
   Accumulator total = tbb::parallel_deterministic_reduce(
@@ -88,7 +99,7 @@ Accumulator Linearize(const PointSet& source,
           const Eigen::Vector3f n = with_normals ? source_normals[i] : Eigen::Vector3f::Zero();
           const bool matched = internal::LinearizePoint(
               target, ctx, source[i], n, &term, &q, &nq,
-              hints != nullptr ? &(*hints)[i] : nullptr);
+              states != nullptr ? &(*states)[i] : nullptr);
           if (matched) acc.template Add<full>(term, source[i]);
           if (cache != nullptr) {
             cache->valid[i] = matched ? 1 : 0;
@@ -335,6 +346,53 @@ bool KdTreeTarget::MatchWithHint(const Eigen::Vector3f& point,
   return true;
 }
 
+bool KdTreeTarget::MatchTracked(const Eigen::Vector3f& point,
+                                const Eigen::Vector3f& normal,
+                                float max_distance_m,
+                                float min_cos_normal_angle,
+                                float min_planarity,
+                                Eigen::Vector3f* target_point,
+                                Eigen::Vector3f* target_normal,
+                                MatchState* state) const {
+  const float max_sq = max_distance_m * max_distance_m;
+  uint32_t index = 0;
+  if (state->index < tree_.size() && state->margin_m > 0 &&
+      (point - state->anchor).squaredNorm() < state->margin_m * state->margin_m) {
+    // Within the margin of the last search: the nearest point is unchanged.
+    index = state->index;
+    if ((tree_.points()[index] - point).squaredNorm() > max_sq) return false;
+  } else {
+    // Two nearest points within max distance, or within twice the distance of
+    // the previous match when that is less (it bounds the nearest; a missing
+    // second point only means a smaller margin).
+    float bound = max_sq;
+    if (state->index < tree_.size()) {
+      const float previous_sq = (tree_.points()[state->index] - point).squaredNorm();
+      bound = std::min(bound, 4.f * previous_sq * 1.0001f + 1e-12f);
+    }
+    uint32_t idx[2];
+    float d2[2];
+    const size_t n = tree_.KnnWithin(point, 2, bound, idx, d2);
+    if (n == 0) return false;
+    index = idx[0];
+    const float d_first = std::sqrt(d2[0]);
+    const float d_second = n == 2 ? std::sqrt(d2[1]) : std::sqrt(bound);
+    // Half the gap, less 2 % and 1 um: far above the rounding of float
+    // distances, so that the tree search would return the same nearest point.
+    state->index = index;
+    state->anchor = point;
+    state->margin_m = 0.49f * (d_second - d_first) - 1e-6f;
+  }
+  Eigen::Vector3f n;
+  float planarity = 0.f;
+  NormalAt(index, &n, &planarity);
+  if (planarity <= 0.f || planarity < min_planarity) return false;
+  if (!normal.isZero() && std::abs(n.dot(normal)) < min_cos_normal_angle) return false;
+  *target_point = tree_.points()[index];
+  *target_normal = n;
+  return true;
+}
+
 ProjectiveTarget::ProjectiveTarget(PointSet vertex_map, const PinholeIntrinsics& intrinsics)
     : vertex_map_(std::move(vertex_map)), intrinsics_(intrinsics) {
   if (!(intrinsics.fx > 0 && intrinsics.fy > 0 && intrinsics.width > 2 && intrinsics.height > 2)) {
@@ -418,14 +476,14 @@ bool LinearizePoint(const IcpTarget& target,
                     LinearizedTerm* term,
                     Eigen::Vector3f* target_point,
                     Eigen::Vector3f* target_normal,
-                    uint32_t* hint) {
+                    IcpTarget::MatchState* state) {
   const Eigen::Vector3f p_t = ctx.rotation_f * p + ctx.translation_f;
   const Eigen::Vector3f n_t = ctx.rotation_f * n;
   Eigen::Vector3f q, nq;
   const bool matched =
-      hint != nullptr
-          ? target.MatchWithHint(p_t, n_t, ctx.max_distance_m, ctx.min_cos_normal_angle,
-                                 ctx.min_planarity, &q, &nq, hint)
+      state != nullptr
+          ? target.MatchTracked(p_t, n_t, ctx.max_distance_m, ctx.min_cos_normal_angle,
+                                ctx.min_planarity, &q, &nq, state)
           : target.Match(p_t, n_t, ctx.max_distance_m, ctx.min_cos_normal_angle, ctx.min_planarity,
                          &q, &nq);
   if (!matched) return false;
@@ -497,8 +555,8 @@ IcpResult RegisterPointToPlane(const PointSet& source,
   size_t stride = strides[0];
   SE3 last_linearized = initial;
   MatchCache cache(options.max_inner_iterations > 0 ? source.size() : 0);
-  // Per source point: the target index of its last match (warm start).
-  std::vector<uint32_t> hints(source.size(), IcpTarget::kNoHint);
+  // Per source point: its last match and search (warm start, skipped searches).
+  std::vector<IcpTarget::MatchState> match_states(source.size());
   constexpr double kMaxExtrapolation = 4.0;
   bool last_extrapolated = false;
   size_t prev_stride = 0;
@@ -520,7 +578,7 @@ IcpResult RegisterPointToPlane(const PointSet& source,
     last_linearized = result.target_from_source;
     acc = Linearize<false>(source, source_normals, target, ctx, stride,
                            options.max_inner_iterations > 0 ? &cache : nullptr,
-                           &hints);
+                           &match_states);
     result.iterations = iteration + 1;
     Vec6 step;
     if (!SolveStep(acc, options.min_inliers, &step)) {
@@ -601,7 +659,7 @@ IcpResult RegisterPointToPlane(const PointSet& source,
                           internal::LinearizationContext(
                               small_step || stride > 1 ? result.target_from_source : last_linearized,
                               options),
-                          1, nullptr, &hints);
+                          1, nullptr, &match_states);
   }
   result.num_inliers = acc.count;
   result.hessian = acc.hessian;

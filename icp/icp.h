@@ -18,8 +18,9 @@
 // convergence thresholds. Weights w come from the robust kernel (IRLS).
 // Correspondences are rejected by distance |Tp - q| > max_correspondence_distance_m,
 // by the normal angle when source normals are given, and by target planarity.
-// Speed: coarse-to-fine source subsets (coarse_stride), a warm-started nearest
-// neighbour search (IcpTarget::MatchWithHint), and the Besl & McKay (1992)
+// Speed: coarse-to-fine source subsets (coarse_stride), a tracked nearest
+// neighbour per source point (IcpTarget::MatchTracked: no search while the point
+// cannot have changed its nearest target point), and the Besl & McKay (1992)
 // extrapolation of aligned, shrinking successive steps (see icp.cc); none of
 // them changes the fixed point, only how fast it is reached. Convergence is
 // always decided by a plain step of an association at full resolution.
@@ -105,6 +106,32 @@ class IcpTarget {
     return Match(point, normal, max_distance_m, min_cos_normal_angle, min_planarity, target_point,
                  target_normal);
   }
+  // What one source point carries from one association to the next
+  // (MatchTracked); start from the default.
+  struct MatchState {
+    uint32_t index = kNoHint;                          // target index of the last match
+    Eigen::Vector3f anchor = Eigen::Vector3f::Zero();  // query of the last tree search
+    // The nearest point stays `index` while the query is closer than this to
+    // anchor (m); <= 0: unknown, search.
+    float margin_m = -1.f;
+  };
+  // Match() with state carried across calls for one source point. The result
+  // must equal Match()'s. KdTreeTarget: a search also finds the second-nearest
+  // point; while later queries stay within half the gap between the two
+  // distances of the searched position, the nearest point cannot have changed
+  // (triangle inequality) and no search is made. The default is MatchWithHint
+  // on state->index.
+  virtual bool MatchTracked(const Eigen::Vector3f& point,
+                            const Eigen::Vector3f& normal,
+                            float max_distance_m,
+                            float min_cos_normal_angle,
+                            float min_planarity,
+                            Eigen::Vector3f* target_point,
+                            Eigen::Vector3f* target_normal,
+                            MatchState* state) const {
+    return MatchWithHint(point, normal, max_distance_m, min_cos_normal_angle, min_planarity,
+                         target_point, target_normal, &state->index);
+  }
 };
 
 // Unorganised clouds (LiDAR): nearest neighbour in a KD-tree.
@@ -141,6 +168,14 @@ class KdTreeTarget : public IcpTarget {
                      Eigen::Vector3f* target_point,
                      Eigen::Vector3f* target_normal,
                      uint32_t* hint) const override;
+  bool MatchTracked(const Eigen::Vector3f& point,
+                    const Eigen::Vector3f& normal,
+                    float max_distance_m,
+                    float min_cos_normal_angle,
+                    float min_planarity,
+                    Eigen::Vector3f* target_point,
+                    Eigen::Vector3f* target_normal,
+                    MatchState* state) const override;
   size_t size() const override { return tree_.size(); }
   const KdTree& tree() const { return tree_; }
   // Unit normal (zero when invalid) and planarity of target point `index`,

@@ -31,8 +31,8 @@ struct LinearizedTerm {
 
 // Associates source point p (normal n, zero if unknown) under ctx and linearises.
 // Returns false when the point has no admissible match; otherwise also returns
-// the match (target point and unit normal, target frame) where asked. hint:
-// optional warm start for IcpTarget::MatchWithHint (updated on a match).
+// the match (target point and unit normal, target frame) where asked. state:
+// optional per-source-point state for IcpTarget::MatchTracked.
 bool LinearizePoint(const IcpTarget& target,
                     const LinearizationContext& ctx,
                     const Eigen::Vector3f& p,
@@ -40,7 +40,7 @@ bool LinearizePoint(const IcpTarget& target,
                     LinearizedTerm* term,
                     Eigen::Vector3f* target_point = nullptr,
                     Eigen::Vector3f* target_normal = nullptr,
-                    uint32_t* hint = nullptr);
+                    IcpTarget::MatchState* state = nullptr);
 
 // Linearises the point-to-plane residual of source point p against a given
 // match (q, unit normal nq) at ctx, without association.

@@ -92,6 +92,54 @@ TEST(KdTreeTarget, MatchWithHintEqualsMatch) {
   EXPECT_LT(matched, 2000u);
 }
 
+// The tracked match (searches skipped while a query stays within the margin of
+// its last search) returns exactly Match()'s result along random walks whose
+// steps range from 0.1 mm to 0.3 m, i.e. both inside and far outside the margins;
+// the walks must exercise both paths (skipped searches leave the anchor alone).
+TEST(KdTreeTarget, MatchTrackedEqualsMatch) {
+  const PointSet target = test::SampleBoxRoom(kRoom, 2000, 0.01, test::Rng());
+  const KdTreeTarget model(target, NormalOptions());
+  std::normal_distribution<float> g(0.f, 1.f);
+  std::uniform_real_distribution<float> log_step(std::log(1e-4f), std::log(0.3f));
+  std::uniform_int_distribution<uint32_t> any(0, static_cast<uint32_t>(target.size() - 1));
+  size_t skipped = 0, searched = 0, matched = 0, steps = 0;
+  for (int walk = 0; walk < 200; ++walk) {
+    const Eigen::Vector3f offset(g(test::Rng()), g(test::Rng()), g(test::Rng()));
+    Eigen::Vector3f query = target[any(test::Rng())] + 0.05f * offset;
+    IcpTarget::MatchState state;
+    for (int step = 0; step < 30; ++step, ++steps) {
+      const Eigen::Vector3f dir(g(test::Rng()), g(test::Rng()), g(test::Rng()));
+      query += std::exp(log_step(test::Rng())) * dir.normalized();
+      Eigen::Vector3f q0, n0, q1, n1;
+      const bool ok0 = model.Match(query, Eigen::Vector3f::Zero(), 0.5f, 0.f, 0.f, &q0, &n0);
+      const Eigen::Vector3f anchor_before = state.anchor;
+      const bool tracked_before = state.margin_m > 0;
+      const bool ok1 =
+          model.MatchTracked(query, Eigen::Vector3f::Zero(), 0.5f, 0.f, 0.f, &q1, &n1, &state);
+      ASSERT_EQ(ok0, ok1) << "walk " << walk << " step " << step;
+      if (ok0) {
+        EXPECT_EQ(q0, q1) << "walk " << walk << " step " << step;
+        EXPECT_EQ(n0, n1);
+        uint32_t nearest = 0;
+        float d2 = 0;
+        ASSERT_TRUE(model.tree().Nearest(query, &nearest, &d2));
+        EXPECT_EQ(state.index, nearest);
+        ++matched;
+      }
+      if (tracked_before && state.anchor == anchor_before && query != anchor_before) {
+        ++skipped;
+      } else {
+        ++searched;
+      }
+    }
+  }
+  // Both outcomes and both paths occur (counts are loose: the walks are random).
+  EXPECT_GT(matched, steps / 4);
+  EXPECT_LT(matched, steps);
+  EXPECT_GT(skipped, steps / 10);
+  EXPECT_GT(searched, steps / 10);
+}
+
 // Re-solving on fixed matches (max_inner_iterations) and the step extrapolation
 // speed the iteration up but keep its fixed point: from a 0.5 m / 0.2 rad offset
 // with noisy points and a Huber kernel, both settings land on the same estimate

@@ -109,16 +109,35 @@ PointSet VoxelDownsamplePoints(const PointSet& points, double voxel_size_m) {
   // 2^20) in an open-addressing table (linear probing, load <= 0.5). Same
   // first-appearance order and summation order as the hash map, hence
   // bit-identical output; ~3x faster than std::unordered_map on 100k points.
+  // The table grows with the number of voxels (doubling, rehashing the keys;
+  // the voxel order lives in `sums`, so it is unaffected): a downsampled scan
+  // has a fraction of its points' voxels, and a table sized for the points
+  // would not stay in cache.
   constexpr int64_t kHalfRange = int64_t{1} << 20;
   constexpr uint64_t kEmpty = ~uint64_t{0};
-  size_t capacity = 16;
-  while (capacity < 2 * points.size()) capacity *= 2;
+  size_t capacity = 1024;
+  while (capacity < points.size() / 4) capacity *= 2;
   int shift = 64;
   for (size_t c = capacity; c > 1; c >>= 1) --shift;
   std::vector<uint64_t> keys(capacity, kEmpty);
   std::vector<uint32_t> slots(capacity);
   std::vector<Eigen::Vector4d> sums;  // xyz sum, count
   sums.reserve(points.size() / 4 + 16);
+  const auto grow = [&] {
+    std::vector<uint64_t> old_keys(2 * capacity, kEmpty);
+    std::vector<uint32_t> old_slots(2 * capacity);
+    old_keys.swap(keys);
+    old_slots.swap(slots);
+    capacity *= 2;
+    --shift;
+    for (size_t j = 0; j < old_keys.size(); ++j) {
+      if (old_keys[j] == kEmpty) continue;
+      size_t h = static_cast<size_t>((old_keys[j] * 0x9E3779B97F4A7C15ULL) >> shift);
+      while (keys[h] != kEmpty) h = (h + 1) & (capacity - 1);
+      keys[h] = old_keys[j];
+      slots[h] = old_slots[j];
+    }
+  };
   for (const auto& p : points) {
     if (!p.allFinite()) continue;
     const double fx = std::floor(p.x() * inv), fy = std::floor(p.y() * inv),
@@ -135,6 +154,11 @@ PointSet VoxelDownsamplePoints(const PointSet& points, double voxel_size_m) {
       keys[h] = key;
       slots[h] = static_cast<uint32_t>(sums.size());
       sums.emplace_back(Eigen::Vector4d::Zero());
+      if (2 * sums.size() > capacity) {
+        grow();  // h is stale now; the new voxel is the last one
+        sums.back() += Eigen::Vector4d(p.x(), p.y(), p.z(), 1.0);
+        continue;
+      }
     }
     sums[slots[h]] += Eigen::Vector4d(p.x(), p.y(), p.z(), 1.0);
   }
@@ -180,6 +204,21 @@ size_t KdTree::Knn(const Eigen::Vector3f& query,
   if (points_.empty() || k == 0) return 0;
   nanoflann::KNNResultSet<float, uint32_t> result(k);
   result.init(indices, sq_dists);
+  impl_->tree.findNeighbors(result, query.data(), nanoflann::SearchParams());
+  return result.size();
+}
+
+size_t KdTree::KnnWithin(const Eigen::Vector3f& query,
+                         size_t k,
+                         float max_sq_dist,
+                         uint32_t* indices,
+                         float* sq_dists) const {
+  if (points_.empty() || k == 0 || !(max_sq_dist >= 0)) return 0;
+  nanoflann::KNNResultSet<float, uint32_t> result(k);
+  result.init(indices, sq_dists);
+  // As in NearestWithin: the k-th slot is nanoflann's pruning bound (worstDist)
+  // until k points closer than it are found.
+  sq_dists[k - 1] = std::nextafter(max_sq_dist, std::numeric_limits<float>::infinity());
   impl_->tree.findNeighbors(result, query.data(), nanoflann::SearchParams());
   return result.size();
 }

@@ -67,6 +67,16 @@ class KdTree {
              size_t k,
              uint32_t* indices,
              float* sq_dists) const;
+  // Up to k nearest points with squared distance <= max_sq_dist (m^2), closest
+  // first: the same points as Knn() followed by dropping those beyond the bound,
+  // but the search prunes with the bound until k points are found. Every point
+  // not returned is farther than the k-th returned one, or than the bound when
+  // fewer than k are returned.
+  size_t KnnWithin(const Eigen::Vector3f& query,
+                   size_t k,
+                   float max_sq_dist,
+                   uint32_t* indices,
+                   float* sq_dists) const;
 
   // All points within `radius_m`, closest first.
   void Radius(const Eigen::Vector3f& query,

@@ -59,6 +59,19 @@ TEST(KdTree, MatchesBruteForce) {
         EXPECT_EQ(within, nearest);
       }
     }
+    // Bounded kNN: Knn()'s points up to the bound, in the same order (bounds
+    // between, at and beyond the 3rd and 8th neighbours' distances).
+    for (const float bound : {dist[2], 0.5f * (dist[2] + dist[3]), dist[7], 2.0f * dist[7]}) {
+      uint32_t idx_within[8];
+      float dist_within[8];
+      const size_t n = tree.KnnWithin(q, 8, bound, idx_within, dist_within);
+      const size_t expected_n = std::count_if(dist, dist + 8, [&](float d) { return d <= bound; });
+      ASSERT_EQ(n, expected_n) << bound;
+      for (size_t k = 0; k < n; ++k) {
+        EXPECT_EQ(idx_within[k], idx[k]);
+        EXPECT_EQ(dist_within[k], dist[k]);
+      }
+    }
   }
 }
 
@@ -113,6 +126,9 @@ PointSet ReferenceVoxelGrid(const PointSet& pts, double voxel) {
 // exactly (same order, bit-identical centroids), including negative coordinates
 // and many points per voxel.
 TEST(VoxelDownsamplePoints, EqualsReferenceOnFastPathAndFallback) {
+  // 0.05 m and 0.3 m voxels give ~48k / ~27k voxels, several times the fast
+  // path's initial table (sized for a quarter of the points): its growth is
+  // exercised too.
   PointSet pts = RandomPoints(50000);
   for (const double voxel : {0.05, 0.3, 2.0}) {
     const PointSet out = VoxelDownsamplePoints(pts, voxel);
