@@ -775,22 +775,30 @@ PointCloud DecodePcdBody(const std::string& path, const PcdHeader& h, const std:
   return cloud;
 }
 
-PointCloud ReadPcdThroughPcl(const std::string& path) {
+// Reads `path` with PCL's Reader (pcl::PCDReader / pcl::PLYReader); PCL's
+// exceptions and a non-zero status become InputErrors (`status_message`).
+template <typename Reader>
+pcl::PCLPointCloud2 ReadBlobWithPcl(const std::string& path, const std::string& status_message) {
   pcl::PCLPointCloud2 blob;
   Eigen::Vector4f origin;
   Eigen::Quaternionf orientation;
   int version = 0;
   int status = -1;
   try {
-    pcl::PCDReader reader;
+    Reader reader;
     status = reader.read(path, blob, origin, orientation, version, 0);
   } catch (const std::exception& e) {
     throw InputError(path, "", std::string("PCL could not read the file: ") + e.what());
   } catch (...) {
     throw InputError(path, "", "PCL could not read the file");
   }
-  if (status != 0) throw InputError(path, "", "PCL could not read the file (corrupt data?)");
-  return CloudFromBlob(path, blob);
+  if (status != 0) throw InputError(path, "", status_message);
+  return blob;
+}
+
+PointCloud ReadPcdThroughPcl(const std::string& path) {
+  return CloudFromBlob(
+      path, ReadBlobWithPcl<pcl::PCDReader>(path, "PCL could not read the file (corrupt data?)"));
 }
 
 // Reads and validates the file; `decode_directly` picks DecodePcdBody for
@@ -869,20 +877,8 @@ PointCloud ReadPly(const std::string& path) {
   const auto vertex = std::find_if(header.elements.begin(), header.elements.end(),
                                    [](const PlyElement& e) { return e.name == "vertex"; });
   if (vertex->count == 0) return PointCloud();
-  pcl::PCLPointCloud2 blob;
-  Eigen::Vector4f origin;
-  Eigen::Quaternionf orientation;
-  int version = 0;
-  int status = -1;
-  try {
-    pcl::PLYReader reader;
-    status = reader.read(path, blob, origin, orientation, version, 0);
-  } catch (const std::exception& e) {
-    throw InputError(path, "", std::string("PCL could not read the file: ") + e.what());
-  } catch (...) {
-    throw InputError(path, "", "PCL could not read the file");
-  }
-  if (status != 0) throw InputError(path, "", "PCL could not parse the PLY data (truncated or malformed)");
+  const pcl::PCLPointCloud2 blob = ReadBlobWithPcl<pcl::PLYReader>(
+      path, "PCL could not parse the PLY data (truncated or malformed)");
   if (static_cast<uint64_t>(blob.width) * blob.height != vertex->count) {
     throw InputError(path, "", "PCL read " + std::to_string(blob.width * blob.height) +
                                    " vertices, the header declares " + std::to_string(vertex->count));
