@@ -484,8 +484,11 @@ void SolveWithSchur(const BundleAdjustmentOptions& options,
   }
 }
 
-// Mean reprojection error of each adjusted track over its registered images.
-void UpdateTrackErrors(const std::set<size_t>& track_set, MapperState* state) {
+// Mean reprojection error of each adjusted track over its registered images;
+// returns the mean over all those observations (the adjusted ones).
+double UpdateTrackErrors(const std::set<size_t>& track_set, MapperState* state) {
+  double total = 0.0;
+  size_t total_count = 0;
   for (size_t k : track_set) {
     Track& track = state->tracks[k];
     double sum = 0.0;
@@ -497,7 +500,10 @@ void UpdateTrackErrors(const std::set<size_t>& track_set, MapperState* state) {
       ++count;
     }
     track.error = count > 0 ? sum / count : -1.0;
+    total += sum;
+    total_count += static_cast<size_t>(count);
   }
+  return total_count > 0 ? total / static_cast<double>(total_count) : 0.0;
 }
 
 }  // namespace
@@ -712,8 +718,7 @@ BundleAdjustmentStats RunBundleAdjustment(
   } else {
     SolveWithCeres(options, spec, start, state, &stats);
   }
-  UpdateTrackErrors(track_set, state);
-  stats.final_mean_reprojection_error_px = MeanError(*state, observations);
+  stats.final_mean_reprojection_error_px = UpdateTrackErrors(track_set, state);
   stats.seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start)
           .count();

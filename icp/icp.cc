@@ -66,6 +66,11 @@ struct Accumulator {
     point_sq += o.point_sq;
     count += o.count;
   }
+  // Fills the lower triangles from the upper ones accumulated by Add.
+  void Symmetrize() {
+    hessian = hessian.selfadjointView<Eigen::Upper>();
+    gradient_outer = gradient_outer.selfadjointView<Eigen::Upper>();
+  }
 };
 
 // The matches of the last association, by source index (only the indices of
@@ -115,8 +120,7 @@ Accumulator Linearize(const PointSet& source,
         a.Join(b);
         return a;
       });
-  total.hessian = total.hessian.selfadjointView<Eigen::Upper>();
-  total.gradient_outer = total.gradient_outer.selfadjointView<Eigen::Upper>();
+  total.Symmetrize();
   return total;
 }
 
@@ -145,8 +149,7 @@ Accumulator LinearizeCached(const PointSet& source,
         a.Join(b);
         return a;
       });
-  total.hessian = total.hessian.selfadjointView<Eigen::Upper>();
-  total.gradient_outer = total.gradient_outer.selfadjointView<Eigen::Upper>();
+  total.Symmetrize();
   return total;
 }
 
@@ -304,6 +307,22 @@ size_t KdTreeTarget::NumNormalsEstimated() const {
   return count;
 }
 
+bool KdTreeTarget::AcceptMatch(uint32_t index,
+                               const Eigen::Vector3f& normal,
+                               float min_cos_normal_angle,
+                               float min_planarity,
+                               Eigen::Vector3f* target_point,
+                               Eigen::Vector3f* target_normal) const {
+  Eigen::Vector3f n;
+  float planarity = 0.f;
+  NormalAt(index, &n, &planarity);
+  if (planarity <= 0.f || planarity < min_planarity) return false;
+  if (!normal.isZero() && std::abs(n.dot(normal)) < min_cos_normal_angle) return false;
+  *target_point = tree_.points()[index];
+  *target_normal = n;
+  return true;
+}
+
 bool KdTreeTarget::Match(const Eigen::Vector3f& point,
                          const Eigen::Vector3f& normal,
                          float max_distance_m,
@@ -336,14 +355,8 @@ bool KdTreeTarget::MatchWithHint(const Eigen::Vector3f& point,
   float sq_dist = 0;
   if (!tree_.NearestWithin(point, bound, &index, &sq_dist)) return false;
   *hint = index;
-  Eigen::Vector3f n;
-  float planarity = 0.f;
-  NormalAt(index, &n, &planarity);
-  if (planarity <= 0.f || planarity < min_planarity) return false;
-  if (!normal.isZero() && std::abs(n.dot(normal)) < min_cos_normal_angle) return false;
-  *target_point = tree_.points()[index];
-  *target_normal = n;
-  return true;
+  return AcceptMatch(index, normal, min_cos_normal_angle, min_planarity, target_point,
+                     target_normal);
 }
 
 bool KdTreeTarget::MatchTracked(const Eigen::Vector3f& point,
@@ -383,14 +396,8 @@ bool KdTreeTarget::MatchTracked(const Eigen::Vector3f& point,
     state->anchor = point;
     state->margin_m = 0.49f * (d_second - d_first) - 1e-6f;
   }
-  Eigen::Vector3f n;
-  float planarity = 0.f;
-  NormalAt(index, &n, &planarity);
-  if (planarity <= 0.f || planarity < min_planarity) return false;
-  if (!normal.isZero() && std::abs(n.dot(normal)) < min_cos_normal_angle) return false;
-  *target_point = tree_.points()[index];
-  *target_normal = n;
-  return true;
+  return AcceptMatch(index, normal, min_cos_normal_angle, min_planarity, target_point,
+                     target_normal);
 }
 
 ProjectiveTarget::ProjectiveTarget(PointSet vertex_map, const PinholeIntrinsics& intrinsics)

@@ -185,6 +185,14 @@ class KdTreeTarget : public IcpTarget {
   size_t NumNormalsEstimated() const;
 
  private:
+  // The normal checks of a nearest point `index` (planarity, normal angle);
+  // fills the outputs when it is accepted.
+  bool AcceptMatch(uint32_t index,
+                   const Eigen::Vector3f& normal,
+                   float min_cos_normal_angle,
+                   float min_planarity,
+                   Eigen::Vector3f* target_point,
+                   Eigen::Vector3f* target_normal) const;
   KdTree tree_;
   NormalOptions normal_options_;
   Eigen::Vector3f viewpoint_ = Eigen::Vector3f::Zero();
