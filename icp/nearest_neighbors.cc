@@ -1,37 +1,19 @@
 #include "icp/nearest_neighbors.h"
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
+#include <type_traits>
 #include <unordered_map>
 
 #include <fmt/format.h>
-#include <nanoflann.hpp>
+#include <tbb/parallel_invoke.h>
 
 #include "core/errors.h"
 
 namespace lisfm {
 
 namespace {
-
-// nanoflann dataset adaptor over a PointSet.
-struct PointSetAdaptor {
-  const PointSet* points;
-  size_t kdtree_get_point_count() const { return points->size(); }
-  float kdtree_get_pt(size_t i, size_t dim) const { return (*points)[i][dim]; }
-  template <class Box>
-  bool kdtree_get_bbox(Box&) const {
-    return false;
-  }
-};
-
-using NanoTree = nanoflann::KDTreeSingleIndexAdaptor<
-    nanoflann::L2_Simple_Adaptor<float, PointSetAdaptor>,
-    PointSetAdaptor,
-    3,
-    uint32_t>;
-
-// Leaf size 16: measured on the LiDAR pair, 10..20 are within 5 % of each other.
-constexpr size_t kLeafSize = 16;
 
 struct VoxelKey {
   int32_t x, y, z;
@@ -47,12 +29,225 @@ struct VoxelKeyHash {
 
 }  // namespace
 
+// lisfm's own static 3-D KD-tree, the engine behind KdTree (chosen by benchmark
+// over nanoflann 1.4.3 and FLANN; `lisfm_icp_bench --knn`, docs/BENCHMARKS.md).
+// - Build: median split (nth_element) along the widest side of the node's cell,
+//   leaves of at most kLeafSize points. The points are permuted in place as
+//   (x, y, z, index) records, so at the end they lie in leaf order, each leaf one
+//   contiguous run, and are stored as three float arrays (structure of arrays) for
+//   the leaf scan. Nodes are numbered in pre-order from the subtree sizes, which
+//   follow from the point counts alone, so the halves of the top levels are built
+//   as parallel TBB tasks and the tree does not depend on the thread count.
+// - Each inner node keeps the largest coordinate of its left half and the smallest
+//   of its right half along the split axis (the gap between the halves prunes
+//   too), and the search carries the incremental squared distance to the cell
+//   (Arya & Mount 1993): a subtree is visited only when its cell is strictly closer
+//   than the current k-th distance. A leaf computes all its squared distances
+//   first (a loop the compiler vectorises), then inserts those below the bound.
+// Exact: the same neighbours as a brute-force scan with the float distance
+// (dx^2 + dy^2) + dz^2, up to the order among exactly equal distances.
+class StaticKdTree {
+ public:
+  static constexpr uint32_t kLeafSize = 24;
+
+  explicit StaticKdTree(const PointSet& points) {
+    const size_t n = points.size();
+    if (n == 0) return;
+    std::vector<Record> records(n);
+    Eigen::Vector3f lo = points[0], hi = points[0];
+    for (size_t i = 0; i < n; ++i) {
+      records[i] = Record{{points[i].x(), points[i].y(), points[i].z()}, static_cast<uint32_t>(i)};
+      lo = lo.cwiseMin(points[i]);
+      hi = hi.cwiseMax(points[i]);
+    }
+    nodes_.resize(NumNodes(n));
+    Build(records.data(), 0, static_cast<uint32_t>(n), 0, lo, hi);
+    x_.resize(n);
+    y_.resize(n);
+    z_.resize(n);
+    original_.resize(n);
+    for (size_t i = 0; i < n; ++i) {
+      x_[i] = records[i].p[0];
+      y_[i] = records[i].p[1];
+      z_[i] = records[i].p[2];
+      original_[i] = records[i].index;
+    }
+  }
+
+  bool empty() const { return nodes_.empty(); }
+
+  // k-NN with squared distance strictly below *bound (the caller's pruning bound);
+  // dist/index sorted ascending, `count` filled so far.
+  struct Result {
+    size_t k;
+    float* dist;
+    uint32_t* index;
+    size_t count = 0;
+    float worst;  // the k-th distance once full, else the bound
+    void Add(float d, uint32_t i) {
+      size_t j = count < k ? count++ : k - 1;
+      while (j > 0 && dist[j - 1] > d) {
+        dist[j] = dist[j - 1];
+        index[j] = index[j - 1];
+        --j;
+      }
+      dist[j] = d;
+      index[j] = i;
+      if (count == k) worst = dist[k - 1];
+    }
+  };
+
+  void Knn(const float* q, Result* result) const {
+    float off[3] = {0.f, 0.f, 0.f};
+    Search(0, q, 0.f, off, result);
+    for (size_t j = 0; j < result->count; ++j) result->index[j] = original_[result->index[j]];
+  }
+
+  // All points with squared distance <= r2, unsorted (positions mapped to the
+  // caller's indices).
+  void Radius(const float* q, float r2, std::vector<std::pair<float, uint32_t>>* out) const {
+    float off[3] = {0.f, 0.f, 0.f};
+    RadiusSearch(0, q, 0.f, off, r2, out);
+  }
+
+ private:
+  struct Record {
+    float p[3];
+    uint32_t index;
+  };
+  struct Node {
+    // Inner: split axis (0..2), left_max / right_min along it, right child id
+    // (left child = this + 1). Leaf: axis 3, points [begin, end).
+    uint32_t axis;
+    uint32_t right_or_begin;
+    uint32_t end;
+    float left_max, right_min;
+  };
+
+  static size_t NumNodes(size_t n) {
+    return n <= kLeafSize ? 1 : 1 + NumNodes(n / 2) + NumNodes(n - n / 2);
+  }
+
+  void Build(Record* r, uint32_t begin, uint32_t end, uint32_t id, Eigen::Vector3f lo,
+             Eigen::Vector3f hi) {
+    Node& node = nodes_[id];
+    const uint32_t n = end - begin;
+    if (n <= kLeafSize) {
+      node = Node{3u, begin, end, 0.f, 0.f};
+      return;
+    }
+    int axis = 0;
+    const Eigen::Vector3f extent = hi - lo;
+    if (extent.y() > extent[axis]) axis = 1;
+    if (extent.z() > extent[axis]) axis = 2;
+    const uint32_t mid = begin + n / 2;
+    // One comparator per axis (a constant index compiles to a plain load).
+    const auto select = [&](auto axis_constant) {
+      constexpr int a = decltype(axis_constant)::value;
+      std::nth_element(r + begin, r + mid, r + end,
+                       [](const Record& x, const Record& y) { return x.p[a] < y.p[a]; });
+    };
+    if (axis == 0) {
+      select(std::integral_constant<int, 0>());
+    } else if (axis == 1) {
+      select(std::integral_constant<int, 1>());
+    } else {
+      select(std::integral_constant<int, 2>());
+    }
+    float left_max = r[begin].p[axis];
+    for (uint32_t i = begin + 1; i < mid; ++i) left_max = std::max(left_max, r[i].p[axis]);
+    const float right_min = r[mid].p[axis];
+    const uint32_t right_id = id + 1 + static_cast<uint32_t>(NumNodes(n / 2));
+    node = Node{static_cast<uint32_t>(axis), right_id, 0u, left_max, right_min};
+    Eigen::Vector3f left_hi = hi, right_lo = lo;
+    left_hi[axis] = left_max;
+    right_lo[axis] = right_min;
+    if (n > 8192) {
+      tbb::parallel_invoke([&] { Build(r, begin, mid, id + 1, lo, left_hi); },
+                           [&] { Build(r, mid, end, right_id, right_lo, hi); });
+    } else {
+      Build(r, begin, mid, id + 1, lo, left_hi);
+      Build(r, mid, end, right_id, right_lo, hi);
+    }
+  }
+
+  void Search(uint32_t id, const float* q, float rd, float* off, Result* result) const {
+    const Node& node = nodes_[id];
+    if (node.axis == 3) {
+      float d2[kLeafSize];
+      const uint32_t b = node.right_or_begin, m = node.end - b;
+      const float* xs = x_.data() + b;
+      const float* ys = y_.data() + b;
+      const float* zs = z_.data() + b;
+      for (uint32_t j = 0; j < m; ++j) {
+        const float dx = xs[j] - q[0], dy = ys[j] - q[1], dz = zs[j] - q[2];
+        d2[j] = dx * dx + dy * dy + dz * dz;
+      }
+      for (uint32_t j = 0; j < m; ++j) {
+        if (d2[j] < result->worst) result->Add(d2[j], b + j);
+      }
+      return;
+    }
+    const uint32_t axis = node.axis;
+    const float to_left = q[axis] - node.left_max;    // > 0: q beyond the left cell
+    const float to_right = q[axis] - node.right_min;  // < 0: q before the right cell
+    uint32_t first, second;
+    float cut;
+    if (to_left + to_right < 0) {
+      first = id + 1;
+      second = node.right_or_begin;
+      cut = to_right;
+    } else {
+      first = node.right_or_begin;
+      second = id + 1;
+      cut = to_left;
+    }
+    Search(first, q, rd, off, result);
+    const float saved = off[axis];
+    const float rd_second = rd - saved * saved + cut * cut;
+    if (rd_second < result->worst) {
+      off[axis] = cut;
+      Search(second, q, rd_second, off, result);
+      off[axis] = saved;
+    }
+  }
+
+  void RadiusSearch(uint32_t id, const float* q, float rd, float* off, float r2,
+                    std::vector<std::pair<float, uint32_t>>* out) const {
+    const Node& node = nodes_[id];
+    if (node.axis == 3) {
+      for (uint32_t j = node.right_or_begin; j < node.end; ++j) {
+        const float dx = x_[j] - q[0], dy = y_[j] - q[1], dz = z_[j] - q[2];
+        const float d = dx * dx + dy * dy + dz * dz;
+        if (d <= r2) out->emplace_back(d, original_[j]);
+      }
+      return;
+    }
+    const uint32_t axis = node.axis;
+    const float to_left = q[axis] - node.left_max;
+    const float to_right = q[axis] - node.right_min;
+    const bool left_first = to_left + to_right < 0;
+    const uint32_t first = left_first ? id + 1 : node.right_or_begin;
+    const uint32_t second = left_first ? node.right_or_begin : id + 1;
+    const float cut = left_first ? to_right : to_left;
+    RadiusSearch(first, q, rd, off, r2, out);
+    const float saved = off[axis];
+    const float rd_second = rd - saved * saved + cut * cut;
+    if (rd_second <= r2) {
+      off[axis] = cut;
+      RadiusSearch(second, q, rd_second, off, r2, out);
+      off[axis] = saved;
+    }
+  }
+
+  std::vector<Node> nodes_;
+  std::vector<float> x_, y_, z_;    // points in leaf order
+  std::vector<uint32_t> original_;  // leaf-order position -> caller's index
+};
+
 struct KdTree::Impl {
-  PointSetAdaptor adaptor;
-  NanoTree tree;
-  Impl(const PointSet* points)
-      : adaptor{points},
-        tree(3, adaptor, nanoflann::KDTreeSingleIndexAdaptorParams(kLeafSize)) {}
+  StaticKdTree tree;
+  explicit Impl(const PointSet& points) : tree(points) {}
 };
 
 void CheckFinitePoints(const PointSet& points, const std::string& what) {
@@ -171,41 +366,25 @@ PointSet VoxelDownsamplePoints(const PointSet& points, double voxel_size_m) {
 
 KdTree::KdTree(PointSet points, const std::string& what) : points_(std::move(points)) {
   CheckFinitePoints(points_, what);
-  impl_ = std::make_unique<Impl>(&points_);
+  impl_ = std::make_unique<Impl>(points_);
 }
 
 KdTree::~KdTree() = default;
 
 bool KdTree::Nearest(const Eigen::Vector3f& query, uint32_t* index, float* sq_dist) const {
-  if (points_.empty()) return false;
-  nanoflann::KNNResultSet<float, uint32_t> result(1);
-  result.init(index, sq_dist);
-  impl_->tree.findNeighbors(result, query.data(), nanoflann::SearchParams());
-  return result.size() == 1;
+  return NearestWithin(query, std::numeric_limits<float>::infinity(), index, sq_dist);
 }
 
 bool KdTree::NearestWithin(const Eigen::Vector3f& query, float max_sq_dist, uint32_t* index,
                            float* sq_dist) const {
-  if (points_.empty() || !(max_sq_dist >= 0)) return false;
-  nanoflann::KNNResultSet<float, uint32_t> result(1);
-  result.init(index, sq_dist);
-  // Seed the worst distance with the bound (next float up, so that a point exactly
-  // at the bound is still found): nanoflann adds only points strictly closer than
-  // worstDist() and prunes every cell farther than it.
-  *sq_dist = std::nextafter(max_sq_dist, std::numeric_limits<float>::infinity());
-  impl_->tree.findNeighbors(result, query.data(), nanoflann::SearchParams());
-  return result.size() == 1;
+  return KnnWithin(query, 1, max_sq_dist, index, sq_dist) == 1;
 }
 
 size_t KdTree::Knn(const Eigen::Vector3f& query,
                    size_t k,
                    uint32_t* indices,
                    float* sq_dists) const {
-  if (points_.empty() || k == 0) return 0;
-  nanoflann::KNNResultSet<float, uint32_t> result(k);
-  result.init(indices, sq_dists);
-  impl_->tree.findNeighbors(result, query.data(), nanoflann::SearchParams());
-  return result.size();
+  return KnnWithin(query, k, std::numeric_limits<float>::infinity(), indices, sq_dists);
 }
 
 size_t KdTree::KnnWithin(const Eigen::Vector3f& query,
@@ -213,14 +392,13 @@ size_t KdTree::KnnWithin(const Eigen::Vector3f& query,
                          float max_sq_dist,
                          uint32_t* indices,
                          float* sq_dists) const {
-  if (points_.empty() || k == 0 || !(max_sq_dist >= 0)) return 0;
-  nanoflann::KNNResultSet<float, uint32_t> result(k);
-  result.init(indices, sq_dists);
-  // As in NearestWithin: the k-th slot is nanoflann's pruning bound (worstDist)
-  // until k points closer than it are found.
-  sq_dists[k - 1] = std::nextafter(max_sq_dist, std::numeric_limits<float>::infinity());
-  impl_->tree.findNeighbors(result, query.data(), nanoflann::SearchParams());
-  return result.size();
+  if (impl_->tree.empty() || k == 0 || !(max_sq_dist >= 0)) return 0;
+  // Points exactly at the bound are included: the search keeps points strictly
+  // below `worst`, so start it one float above the bound.
+  StaticKdTree::Result result{k, sq_dists, indices, 0,
+                              std::nextafter(max_sq_dist, std::numeric_limits<float>::infinity())};
+  impl_->tree.Knn(query.data(), &result);
+  return result.count;
 }
 
 void KdTree::Radius(const Eigen::Vector3f& query,
@@ -229,14 +407,13 @@ void KdTree::Radius(const Eigen::Vector3f& query,
                     std::vector<float>* sq_dists) const {
   indices->clear();
   sq_dists->clear();
-  if (points_.empty()) return;
-  std::vector<std::pair<uint32_t, float>> matches;
-  nanoflann::SearchParams params;
-  params.sorted = true;
-  impl_->tree.radiusSearch(query.data(), radius_m * radius_m, matches, params);
+  if (impl_->tree.empty()) return;
+  std::vector<std::pair<float, uint32_t>> matches;
+  impl_->tree.Radius(query.data(), radius_m * radius_m, &matches);
+  std::sort(matches.begin(), matches.end());
   for (const auto& m : matches) {
-    indices->push_back(m.first);
-    sq_dists->push_back(m.second);
+    indices->push_back(m.second);
+    sq_dists->push_back(m.first);
   }
 }
 

@@ -75,6 +75,112 @@ TEST(KdTree, MatchesBruteForce) {
   }
 }
 
+// Brute-force k nearest squared distances of q (ascending), with the tree's own
+// float formula (dx^2 + dy^2) + dz^2.
+std::vector<float> BruteForceSorted(const PointSet& pts, const Eigen::Vector3f& q) {
+  std::vector<float> d2(pts.size());
+  for (size_t i = 0; i < pts.size(); ++i) {
+    const float dx = pts[i].x() - q.x(), dy = pts[i].y() - q.y(), dz = pts[i].z() - q.z();
+    d2[i] = dx * dx + dy * dy + dz * dz;
+  }
+  std::sort(d2.begin(), d2.end());
+  return d2;
+}
+
+// Checks Knn / KnnWithin / Radius of `tree` at q against brute force: the same
+// distances in the same order, each returned index at its returned distance.
+void ExpectExactSearch(const KdTree& tree, const Eigen::Vector3f& q, size_t k, float bound) {
+  const PointSet& pts = tree.points();
+  const std::vector<float> sorted = BruteForceSorted(pts, q);
+  const auto distance_of = [&](uint32_t i) {
+    const float dx = pts[i].x() - q.x(), dy = pts[i].y() - q.y(), dz = pts[i].z() - q.z();
+    return dx * dx + dy * dy + dz * dz;
+  };
+  std::vector<uint32_t> idx(k);
+  std::vector<float> dist(k);
+  const size_t n = tree.Knn(q, k, idx.data(), dist.data());
+  ASSERT_EQ(n, std::min(k, pts.size()));
+  for (size_t j = 0; j < n; ++j) {
+    ASSERT_EQ(dist[j], sorted[j]) << "neighbour " << j << " of " << k;
+    ASSERT_EQ(distance_of(idx[j]), dist[j]);
+  }
+  const size_t expected_within =
+      std::min<size_t>(k, std::upper_bound(sorted.begin(), sorted.end(), bound) - sorted.begin());
+  const size_t m = tree.KnnWithin(q, k, bound, idx.data(), dist.data());
+  ASSERT_EQ(m, expected_within) << "bound " << bound;
+  for (size_t j = 0; j < m; ++j) {
+    ASSERT_EQ(dist[j], sorted[j]);
+    ASSERT_EQ(distance_of(idx[j]), dist[j]);
+  }
+  std::vector<uint32_t> in_radius;
+  std::vector<float> in_radius_d2;
+  tree.Radius(q, std::sqrt(bound), &in_radius, &in_radius_d2);
+  const float r2 = std::sqrt(bound) * std::sqrt(bound);
+  const size_t expected_radius =
+      std::upper_bound(sorted.begin(), sorted.end(), r2) - sorted.begin();
+  ASSERT_EQ(in_radius.size(), expected_radius);
+  ASSERT_TRUE(std::is_sorted(in_radius_d2.begin(), in_radius_d2.end()));
+  for (size_t j = 0; j < in_radius.size(); ++j) ASSERT_EQ(distance_of(in_radius[j]), in_radius_d2[j]);
+}
+
+// Sizes around the leaf size (24) and its multiples: one leaf, a leaf and a bit,
+// two levels; every query from the cloud itself and nearby.
+TEST(KdTree, ExactAroundLeafSizes) {
+  for (const int n : {1, 2, 5, 23, 24, 25, 47, 48, 49, 97, 300}) {
+    const PointSet pts = RandomPoints(n);
+    const KdTree tree(pts);
+    for (int i = 0; i < std::min(n, 40); ++i) {
+      const Eigen::Vector3f q = pts[i] + Eigen::Vector3f(0.01f * i, -0.02f, 0.03f);
+      for (const size_t k : {size_t{1}, size_t{2}, size_t{10}, size_t{30}}) {
+        ExpectExactSearch(tree, q, k, 4.0f);
+      }
+    }
+  }
+}
+
+// A LiDAR-like cloud large enough for the parallel build (> 8192 points): three
+// planes sampled along rings (many near-equal coordinates), exact duplicates and
+// a sparse far cluster; queries at tree points (as the normals make them) and
+// off the surfaces (as the ICP makes them), with and without bounds.
+TEST(KdTree, ExactOnStructuredCloudWithDuplicates) {
+  PointSet pts;
+  std::uniform_real_distribution<float> noise(-0.005f, 0.005f);
+  for (int ring = 0; ring < 40; ++ring) {
+    for (int a = 0; a < 300; ++a) {
+      const float t = 0.02f * a, h = 0.05f * ring;
+      pts.emplace_back(t, h, noise(test::Rng()));         // floor
+      pts.emplace_back(t, 2.0f + noise(test::Rng()), h);  // wall
+      if (a % 3 == 0) pts.emplace_back(6.0f, h, t);       // grid wall, exact coordinates
+    }
+  }
+  for (int d = 0; d < 200; ++d) pts.push_back(pts[37]);  // 200 exact duplicates
+  const PointSet far = RandomPoints(50);
+  for (const auto& p : far) pts.push_back(p + Eigen::Vector3f(40.f, 0.f, 0.f));
+  ASSERT_GT(pts.size(), 8192u);
+  const KdTree tree(pts);
+  std::uniform_int_distribution<size_t> pick(0, pts.size() - 1);
+  for (int trial = 0; trial < 150; ++trial) {
+    const Eigen::Vector3f at_point = pts[pick(test::Rng())];
+    const Eigen::Vector3f off_surface = at_point + Eigen::Vector3f(0.03f, -0.04f, 0.05f);
+    for (const size_t k : {size_t{1}, size_t{2}, size_t{10}}) {
+      ExpectExactSearch(tree, at_point, k, 0.01f);
+      ExpectExactSearch(tree, off_surface, k, 0.09f);
+    }
+  }
+  // The duplicates: 201 points at distance 0 from pts[37].
+  uint32_t idx[64];
+  float dist[64];
+  ASSERT_EQ(tree.Knn(pts[37], 64, idx, dist), 64u);
+  for (int j = 0; j < 64; ++j) {
+    EXPECT_EQ(dist[j], 0.f);
+    EXPECT_EQ(pts[idx[j]], pts[37]);
+  }
+  // Far from everything: the bounded search finds nothing, the unbounded the far cluster.
+  EXPECT_EQ(tree.KnnWithin(Eigen::Vector3f(100.f, 0.f, 0.f), 5, 1.f, idx, dist), 0u);
+  ASSERT_EQ(tree.Knn(Eigen::Vector3f(100.f, 0.f, 0.f), 5, idx, dist), 5u);
+  EXPECT_GT(pts[idx[0]].x(), 30.f);
+}
+
 TEST(KdTree, EmptyAndNonFinite) {
   const KdTree empty(PointSet{});
   uint32_t idx;

@@ -6,7 +6,7 @@
 // Ours runs its two independent chains (source: load, voxel grid; target: load,
 // voxel grid, tree) as two TBB tasks, one per core; the stage table (`--stages`)
 // times the stages one after the other.
-// `--knn` compares nanoflann and FLANN on the LiDAR pair.
+// `--knn` compares lisfm's KD-tree with nanoflann and FLANN (exact, one thread).
 //
 // Times are medians over `repeats` runs (whole process and registration alone);
 // the errors are of the last run. The Bayesian time is ICP + SGLD from the same
@@ -283,42 +283,103 @@ std::vector<Mat4> ReadBalmPoses(const std::string& path) {
   return poses;
 }
 
-void KnnComparison(const std::string& dir) {
-  const PointSet target = FinitePointsOf(ReadPointCloud(dir + "/registration_lidar_pair/251370668.pcd"));
-  const PointSet queries = FinitePointsOf(ReadPointCloud(dir + "/registration_lidar_pair/251371071.pcd"));
-  for (const int k : {1, 10}) {
-    auto t0 = Clock::now();
-    const KdTree tree(target);
-    const double nano_build = Ms(t0);
-    std::vector<uint32_t> idx(k);
-    std::vector<float> d2(k);
-    double checksum_nano = 0;
-    t0 = Clock::now();
-    for (const auto& q : queries) {
-      tree.Knn(q, k, idx.data(), d2.data());
-      checksum_nano += d2[k - 1];
-    }
-    const double nano_query = Ms(t0);
-    flann::Matrix<float> data(const_cast<float*>(target[0].data()), target.size(), 3);
-    t0 = Clock::now();
-    flann::Index<flann::L2_Simple<float>> index(data, flann::KDTreeSingleIndexParams(16));
-    index.buildIndex();
-    const double flann_build = Ms(t0);
-    std::vector<size_t> fidx(k);
-    std::vector<float> fd2(k);
-    double checksum_flann = 0;
-    t0 = Clock::now();
-    for (const auto& q : queries) {
-      flann::Matrix<float> query(const_cast<float*>(q.data()), 1, 3);
+// nanoflann dataset adaptor (the previous engine of KdTree, kept as a reference).
+struct NanoflannAdaptor {
+  const PointSet* points;
+  size_t kdtree_get_point_count() const { return points->size(); }
+  float kdtree_get_pt(size_t i, size_t dim) const { return (*points)[i][dim]; }
+  template <class Box>
+  bool kdtree_get_bbox(Box&) const {
+    return false;
+  }
+};
+using NanoflannTree = nanoflann::KDTreeSingleIndexAdaptor<
+    nanoflann::L2_Simple_Adaptor<float, NanoflannAdaptor>, NanoflannAdaptor, 3, uint32_t>;
+
+// One kNN workload on the three engines (exact, one thread, leaf 16 for nanoflann
+// and FLANN as measured best for them; lisfm's own leaf size is 24). `bound` > 0:
+// every search is limited to that squared distance (the ICP's bounded 2-NN).
+void KnnRow(const std::string& name, const PointSet& target, const PointSet& queries, int k,
+            float bound) {
+  std::vector<uint32_t> idx(k);
+  std::vector<float> d2(k);
+  auto t0 = Clock::now();
+  const KdTree tree(target);
+  const double ours_build = Ms(t0);
+  double checksum_ours = 0;
+  t0 = Clock::now();
+  for (const auto& q : queries) {
+    const size_t n = bound > 0 ? tree.KnnWithin(q, k, bound, idx.data(), d2.data())
+                               : tree.Knn(q, k, idx.data(), d2.data());
+    if (n > 0) checksum_ours += d2[n - 1] + n;
+  }
+  const double ours_query = Ms(t0);
+
+  t0 = Clock::now();
+  NanoflannAdaptor adaptor{&target};
+  NanoflannTree nano(3, adaptor, nanoflann::KDTreeSingleIndexAdaptorParams(16));
+  const double nano_build = Ms(t0);
+  double checksum_nano = 0;
+  t0 = Clock::now();
+  for (const auto& q : queries) {
+    nanoflann::KNNResultSet<float, uint32_t> result(k);
+    result.init(idx.data(), d2.data());
+    if (bound > 0) d2[k - 1] = std::nextafter(bound, std::numeric_limits<float>::infinity());
+    nano.findNeighbors(result, q.data(), nanoflann::SearchParams());
+    const size_t n = result.size();
+    if (n > 0) checksum_nano += d2[n - 1] + n;
+  }
+  const double nano_query = Ms(t0);
+
+  flann::Matrix<float> data(const_cast<float*>(target[0].data()), target.size(), 3);
+  t0 = Clock::now();
+  flann::Index<flann::L2_Simple<float>> index(data, flann::KDTreeSingleIndexParams(16));
+  index.buildIndex();
+  const double flann_build = Ms(t0);
+  std::vector<size_t> fidx(k);
+  double checksum_flann = 0;
+  t0 = Clock::now();
+  for (const auto& q : queries) {
+    flann::Matrix<float> query(const_cast<float*>(q.data()), 1, 3);
+    if (bound > 0) {
+      std::vector<std::vector<size_t>> ri;
+      std::vector<std::vector<float>> rd;
+      flann::SearchParams params(-1);
+      params.max_neighbors = k;
+      params.sorted = true;
+      const int n = index.radiusSearch(query, ri, rd, bound, params);
+      if (n > 0) checksum_flann += rd[0][n - 1] + n;
+    } else {
       flann::Matrix<size_t> mi(fidx.data(), 1, k);
-      flann::Matrix<float> md(fd2.data(), 1, k);
+      flann::Matrix<float> md(d2.data(), 1, k);
       index.knnSearch(query, mi, md, k, flann::SearchParams(-1));
-      checksum_flann += fd2[k - 1];
+      checksum_flann += d2[k - 1] + k;
     }
-    const double flann_query = Ms(t0);
-    std::printf("| %d-NN, %zu pts, %zu queries, 1 thread | %.1f ms | %.1f ms | %.1f ms | %.1f ms | %s |\n", k,
-                target.size(), queries.size(), nano_build, nano_query, flann_build, flann_query,
-                std::abs(checksum_nano - checksum_flann) < 1e-3 * checksum_nano ? "same" : "DIFFER");
+  }
+  const double flann_query = Ms(t0);
+  const auto same = [&](double a) { return std::abs(a - checksum_ours) <= 1e-6 * checksum_ours; };
+  std::printf("| %s, k=%d%s, %zu pts, %zu queries | %.1f / %.1f ms | %.1f / %.1f ms | %.1f / %.1f ms | %.2fx | %s |\n",
+              name.c_str(), k, bound > 0 ? ", bounded" : "", target.size(), queries.size(),
+              ours_build, ours_query, nano_build, nano_query, flann_build, flann_query,
+              nano_query / ours_query, same(checksum_nano) && same(checksum_flann) ? "same" : "DIFFER");
+}
+
+void KnnComparison(const std::string& dir) {
+  std::printf("| workload (1 thread) | lisfm build / query | nanoflann build / query | FLANN build / query | nanoflann / lisfm query | results |\n|---|---|---|---|---|---|\n");
+  {
+    const PointSet target = FinitePointsOf(ReadPointCloud(dir + "/registration_lidar_pair/251370668.pcd"));
+    const PointSet queries = FinitePointsOf(ReadPointCloud(dir + "/registration_lidar_pair/251371071.pcd"));
+    KnnRow("registration_lidar_pair raw scans", target, queries, 1, 0);
+    KnnRow("registration_lidar_pair raw scans", target, queries, 10, 0);
+  }
+  {
+    // The ICP's own workloads on a BALM pair: 10-NN at the (0.1 m voxel) target
+    // points (normals) and the bounded 2-NN of the (0.25 m voxel) source points.
+    const std::string scans = dir + "/lidar_balm_realworld_subset/scans/";
+    const PointSet target = VoxelDownsamplePoints(FinitePointsOf(ReadPointCloud(scans + "full35.pcd")), 0.1);
+    const PointSet source = VoxelDownsamplePoints(FinitePointsOf(ReadPointCloud(scans + "full36.pcd")), 0.25);
+    KnnRow("balm full35 target normals", target, target, 10, 0);
+    KnnRow("balm full36 source -> full35", target, source, 2, 0.09f);
   }
 }
 
@@ -342,7 +403,6 @@ int main(int argc, char** argv) {
   pcl::console::setVerbosityLevel(pcl::console::L_ALWAYS);
   open3d::utility::SetVerbosityLevel(open3d::utility::VerbosityLevel::Error);
   if (knn) {
-    std::printf("| query | nanoflann build | nanoflann query | FLANN build | FLANN query | results |\n|---|---|---|---|---|---|\n");
     KnnComparison(dir);
     std::printf("\n");
   }
