@@ -62,7 +62,7 @@ std::string FormatMatrix(const Eigen::MatrixXd& m, int precision) {
 
 PointSet LoadPoints(const std::string& path) {
   size_t dropped = 0;
-  PointSet pts = FinitePointsOf(ReadPointCloud(path), &dropped);
+  PointSet pts = ReadPointPositions(path, &dropped);
   if (dropped > 0) LogInfo("{}: dropped {} non-finite points", path, dropped);
   if (pts.size() < 6) {
     throw InputError(path, "", fmt::format("expected at least 6 finite points, found {}", pts.size()));

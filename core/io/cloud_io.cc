@@ -11,6 +11,10 @@
 #include <mutex>
 #include <string_view>
 
+#include <fcntl.h>
+#include <sys/mman.h>
+#include <unistd.h>
+
 #include <fmt/format.h>
 
 #include <pcl/PCLPointCloud2.h>
@@ -56,6 +60,40 @@ std::string ReadBytes(const std::string& path, uint64_t offset, uint64_t count) 
   bytes.resize(static_cast<size_t>(std::max<std::streamsize>(in.gcount(), 0)));
   return bytes;
 }
+
+// The whole file as read-only bytes: memory-mapped (the page cache's own pages:
+// no copy, and no zero-filled buffer to fault in), or read into memory where
+// mapping fails. `size` is the size found by FileSize(); a file that shrinks
+// while mapped is outside what this reader supports.
+class FileBytes {
+ public:
+  FileBytes(const std::string& path, uint64_t size) : size_(static_cast<size_t>(size)) {
+    const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+    if (fd >= 0) {
+      void* map = ::mmap(nullptr, size_, PROT_READ, MAP_PRIVATE | MAP_POPULATE, fd, 0);
+      ::close(fd);
+      if (map != MAP_FAILED) map_ = map;
+    }
+    if (map_ == nullptr) {
+      fallback_ = ReadBytes(path, 0, size);
+      size_ = fallback_.size();
+    }
+  }
+  ~FileBytes() {
+    if (map_ != nullptr) ::munmap(map_, size_);
+  }
+  FileBytes(const FileBytes&) = delete;
+  FileBytes& operator=(const FileBytes&) = delete;
+  std::string_view view() const {
+    return map_ != nullptr ? std::string_view(static_cast<const char*>(map_), size_)
+                           : std::string_view(fallback_);
+  }
+
+ private:
+  void* map_ = nullptr;
+  size_t size_;
+  std::string fallback_;
+};
 
 // A header token quoted for an error message: printable, at most 40 chars.
 std::string Quote(const std::string& s) {
@@ -127,8 +165,8 @@ struct PcdHeader {
 
 // `file`: the whole file (ReadPcd reads it once; only its first kMaxHeaderBytes
 // are searched for the header).
-PcdHeader ParsePcdHeader(const std::string& path, uint64_t file_size, const std::string& file) {
-  const std::string_view head = std::string_view(file).substr(0, kMaxHeaderBytes);
+PcdHeader ParsePcdHeader(const std::string& path, uint64_t file_size, std::string_view file) {
+  const std::string_view head = file.substr(0, kMaxHeaderBytes);
   PcdHeader h;
   std::map<std::string, int> seen;  // keyword -> line
   const bool found_data = ForEachLine(head, 0, 1, [&](const std::string& raw, int line, size_t next) {
@@ -262,7 +300,7 @@ PcdHeader ParsePcdHeader(const std::string& path, uint64_t file_size, const std:
                          " bytes after the header, found " + std::to_string(body_bytes));
   }
   if (h.data == "binary_compressed" && h.points > 0) {
-    const std::string_view sizes = std::string_view(file).substr(std::min<uint64_t>(h.data_offset, file.size()), 8);
+    const std::string_view sizes = file.substr(std::min<uint64_t>(h.data_offset, file.size()), 8);
     if (sizes.size() < 8) {
       throw InputError(path, Where(h.data_line), "binary_compressed data is truncated (no size words)");
     }
@@ -288,8 +326,8 @@ PcdHeader ParsePcdHeader(const std::string& path, uint64_t file_size, const std:
 // PCL reads any token of an ascii body (non-numbers become 0 or garbage) and
 // tolerates missing lines, so the body is checked here: POINTS lines of
 // sum(COUNT) numeric tokens, integers for I/U fields.
-void ValidatePcdAsciiBody(const std::string& path, const PcdHeader& h, const std::string& file) {
-  const std::string_view body = std::string_view(file).substr(std::min<uint64_t>(h.data_offset, file.size()));
+void ValidatePcdAsciiBody(const std::string& path, const PcdHeader& h, std::string_view file) {
+  const std::string_view body = file.substr(std::min<uint64_t>(h.data_offset, file.size()));
   std::vector<bool> integer_value;
   for (size_t i = 0; i < h.names.size(); ++i) {
     for (int c = 0; c < h.counts[i]; ++c) integer_value.push_back(h.types[i] != 'F');
@@ -704,22 +742,28 @@ bool LzfDecompress(const uint8_t* in, size_t in_size, std::vector<uint8_t>* out)
 
 // Decodes the body of a binary or binary_compressed PCD `file` (header `h`
 // already validated: sizes, truncation, announced sizes).
-PointCloud DecodePcdBody(const std::string& path, const PcdHeader& h, const std::string& file) {
-  const bool compressed = h.data == "binary_compressed";
-  const uint64_t needed = h.points * h.point_bytes;
-  std::vector<uint8_t> unpacked;
+// The records of a binary body, or the field blocks of a binary_compressed one
+// (LZF-decoded into *unpacked).
+const uint8_t* PcdBodyData(const std::string& path, const PcdHeader& h, std::string_view file,
+                           std::vector<uint8_t>* unpacked) {
   const uint8_t* data = reinterpret_cast<const uint8_t*>(file.data()) + h.data_offset;
-  if (compressed) {
-    uint32_t compressed_bytes = 0;
-    std::memcpy(&compressed_bytes, data, 4);
-    unpacked.resize(needed);
-    if (!LzfDecompress(data + 8, compressed_bytes, &unpacked)) {
-      throw InputError(path, Where(h.data_line),
-                       "binary_compressed data is corrupt (the LZF stream does not decode to " +
-                           std::to_string(needed) + " bytes)");
-    }
-    data = unpacked.data();
+  if (h.data != "binary_compressed") return data;
+  const uint64_t needed = h.points * h.point_bytes;
+  uint32_t compressed_bytes = 0;
+  std::memcpy(&compressed_bytes, data, 4);
+  unpacked->resize(needed);
+  if (!LzfDecompress(data + 8, compressed_bytes, unpacked)) {
+    throw InputError(path, Where(h.data_line),
+                     "binary_compressed data is corrupt (the LZF stream does not decode to " +
+                         std::to_string(needed) + " bytes)");
   }
+  return unpacked->data();
+}
+
+PointCloud DecodePcdBody(const std::string& path, const PcdHeader& h, std::string_view file) {
+  const bool compressed = h.data == "binary_compressed";
+  std::vector<uint8_t> unpacked;
+  const uint8_t* data = PcdBodyData(path, h, file, &unpacked);
   const PcdFieldRef x = FindPcdField(path, h, "x", true, compressed);
   const PcdFieldRef y = FindPcdField(path, h, "y", true, compressed);
   const PcdFieldRef z = FindPcdField(path, h, "z", true, compressed);
@@ -775,6 +819,40 @@ PointCloud DecodePcdBody(const std::string& path, const PcdHeader& h, const std:
   return cloud;
 }
 
+// Only x, y, z of a binary or binary_compressed body, finite points only (the
+// same positions as DecodePcdBody followed by the finiteness filter).
+std::vector<Eigen::Vector3f> DecodePcdPositions(const std::string& path, const PcdHeader& h,
+                                                std::string_view file, size_t* num_non_finite) {
+  const bool compressed = h.data == "binary_compressed";
+  std::vector<uint8_t> unpacked;
+  const uint8_t* data = PcdBodyData(path, h, file, &unpacked);
+  const PcdFieldRef x = FindPcdField(path, h, "x", true, compressed);
+  const PcdFieldRef y = FindPcdField(path, h, "y", true, compressed);
+  const PcdFieldRef z = FindPcdField(path, h, "z", true, compressed);
+  const auto at = [&](const PcdFieldRef& f, uint64_t i) {
+    return data + f.offset + i * (compressed ? static_cast<uint64_t>(f.size) : h.point_bytes);
+  };
+  const bool xyz_float = x.type == 'F' && x.size == 4 && y.type == 'F' && y.size == 4 &&
+                         z.type == 'F' && z.size == 4;
+  std::vector<Eigen::Vector3f> out;
+  out.reserve(h.points);
+  for (uint64_t i = 0; i < h.points; ++i) {
+    Eigen::Vector3f p;
+    if (xyz_float) {
+      std::memcpy(&p.x(), at(x, i), 4);
+      std::memcpy(&p.y(), at(y, i), 4);
+      std::memcpy(&p.z(), at(z, i), 4);
+    } else {
+      p << static_cast<float>(LoadPcdValue(at(x, i), x.type, x.size)),
+          static_cast<float>(LoadPcdValue(at(y, i), y.type, y.size)),
+          static_cast<float>(LoadPcdValue(at(z, i), z.type, z.size));
+    }
+    if (p.allFinite()) out.push_back(p);
+  }
+  if (num_non_finite != nullptr) *num_non_finite = h.points - out.size();
+  return out;
+}
+
 // Reads `path` with PCL's Reader (pcl::PCDReader / pcl::PLYReader); PCL's
 // exceptions and a non-zero status become InputErrors (`status_message`).
 template <typename Reader>
@@ -806,7 +884,8 @@ PointCloud ReadPcdThroughPcl(const std::string& path) {
 PointCloud ReadPcdImpl(const std::string& path, bool decode_directly) {
   SilencePcl();
   const uint64_t file_size = FileSize(path);
-  const std::string file = ReadBytes(path, 0, file_size);
+  const FileBytes bytes(path, file_size);
+  const std::string_view file = bytes.view();
   const PcdHeader header = ParsePcdHeader(path, file_size, file);
   if (header.data == "ascii") ValidatePcdAsciiBody(path, header, file);
   if (header.points == 0) {
@@ -924,6 +1003,30 @@ void WritePly(const std::string& path, const PointCloud& cloud) {
   text += "end_header\n";
   text += PackPoints(cloud, with_sensor_id);
   WriteFileAtomically(path, text);
+}
+
+std::vector<Eigen::Vector3f> ReadPointPositions(const std::string& path, size_t* num_non_finite) {
+  const std::string extension = Lowercase(std::filesystem::path(path).extension().string());
+  if (extension == ".pcd") {
+    SilencePcl();
+    const uint64_t file_size = FileSize(path);
+    const FileBytes bytes(path, file_size);
+    const std::string_view file = bytes.view();
+    const PcdHeader header = ParsePcdHeader(path, file_size, file);
+    const bool pcl_padding = header.data == "binary_compressed" &&
+                             std::find(header.names.begin(), header.names.end(), "_") != header.names.end();
+    if (header.data != "ascii" && !pcl_padding && header.points > 0) {
+      return DecodePcdPositions(path, header, file, num_non_finite);
+    }
+  }
+  const PointCloud cloud = ReadPointCloud(path);
+  std::vector<Eigen::Vector3f> out;
+  out.reserve(cloud.size());
+  for (const LidarPoint& p : cloud.points) {
+    if (IsFinite(p)) out.push_back(p.xyz());
+  }
+  if (num_non_finite != nullptr) *num_non_finite = cloud.size() - out.size();
+  return out;
 }
 
 PointCloud ReadPointCloud(const std::string& path) {

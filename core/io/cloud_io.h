@@ -47,6 +47,9 @@
 #pragma once
 
 #include <string>
+#include <vector>
+
+#include <Eigen/Core>
 
 #include "core/point_cloud.h"
 
@@ -67,5 +70,15 @@ void WritePly(const std::string& path, const PointCloud& cloud);
 // an InputError naming the path.
 PointCloud ReadPointCloud(const std::string& path);
 void WritePointCloud(const std::string& path, const PointCloud& cloud);
+
+// The positions of the finite points of a .pcd or .ply file, in file order (what
+// registration needs), and how many non-finite points were dropped (may be
+// null). Binary and binary_compressed PCDs are decoded straight into the
+// positions after the same header validation and errors as ReadPcd; their other
+// fields are neither read nor checked. Every other file goes through
+// ReadPointCloud (all of its checks). Same positions as ReadPointCloud followed
+// by dropping non-finite points.
+std::vector<Eigen::Vector3f> ReadPointPositions(const std::string& path,
+                                                size_t* num_non_finite = nullptr);
 
 }  // namespace lisfm

@@ -434,6 +434,59 @@ TEST(CloudIoDirectDecoderRealData, MatchesPclReader) {
   }
 }
 
+// ReadPointPositions (the registration's reader): exactly the finite positions of
+// ReadPointCloud, on the direct-decoding path (binary, binary_compressed) and on
+// the fallbacks (ascii PCD, PLY, "_" padding), with the non-finite count.
+void ExpectPositionsOfCloud(const std::string& path) {
+  const PointCloud cloud = ReadPointCloud(path);
+  std::vector<Eigen::Vector3f> expected;
+  for (const LidarPoint& p : cloud.points) {
+    if (IsFinite(p)) expected.push_back(p.xyz());
+  }
+  size_t non_finite = 12345;
+  const std::vector<Eigen::Vector3f> positions = ReadPointPositions(path, &non_finite);
+  ASSERT_EQ(positions.size(), expected.size()) << path;
+  EXPECT_EQ(non_finite, cloud.size() - expected.size()) << path;
+  for (size_t i = 0; i < positions.size(); ++i) {
+    ASSERT_EQ(positions[i], expected[i]) << path << " point " << i;
+  }
+}
+
+TEST(CloudIo, PointPositionsAreTheFinitePointsOfReadPointCloud) {
+  test::TempDir dir;
+  PointCloud cloud = RandomCloud(300, true);
+  for (const size_t i : {size_t{0}, size_t{17}, size_t{299}}) cloud.points[i].y = std::nanf("");
+  cloud.points[40].z = std::numeric_limits<float>::infinity();
+  WritePcd(dir.File("binary.pcd"), cloud, true);
+  WritePcd(dir.File("ascii.pcd"), cloud, false);
+  WritePly(dir.File("cloud.ply"), cloud);
+  for (const std::string name : {"binary.pcd", "ascii.pcd", "cloud.ply"}) {
+    ExpectPositionsOfCloud(dir.File(name));
+  }
+  size_t non_finite = 0;
+  EXPECT_EQ(ReadPointPositions(dir.File("binary.pcd"), &non_finite).size(), 296u);
+  EXPECT_EQ(non_finite, 4u);
+  ExpectPositionsOfCloud(test::SourceDir() + "/tests/data/clouds/pcl_xyzi_compressed.pcd");
+  // Truncated and unknown files: the same errors as ReadPointCloud.
+  const std::string bytes = Bytes(dir.File("binary.pcd"));
+  WriteBytes(dir.File("cut.pcd"), bytes.substr(0, bytes.size() - 50));
+  ExpectInputError([&] { ReadPointPositions(dir.File("cut.pcd")); }, dir.File("cut.pcd"), "truncated");
+  WriteBytes(dir.File("cloud.xyz"), "1 2 3\n");
+  ExpectInputError([&] { ReadPointPositions(dir.File("cloud.xyz")); }, dir.File("cloud.xyz"),
+                   "unknown point cloud extension");
+}
+
+TEST(CloudIoRealData, PointPositionsOfRealScans) {
+  LISFM_REQUIRE_SHARED_DATA("lidar_balm_realworld_subset/scans/full30.pcd");
+  // Binary LiDAR scans and an organised binary_compressed Kinect frame (NaN pixels).
+  for (const std::string name : {"lidar_balm_realworld_subset/scans/full30.pcd",
+                                 "registration_lidar_pair/251370668.pcd", "pointclouds_pcl/office1.pcd",
+                                 "pointclouds_pcl/bun0.pcd"}) {
+    const std::string path = test::SharedData(name);
+    if (!path.empty()) ExpectPositionsOfCloud(path);
+  }
+}
+
 // ---------------------------------------------------------------------------
 // Bad input: one InputError naming the file, never a crash.
 

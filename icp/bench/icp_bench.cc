@@ -85,9 +85,9 @@ Outcome RunOurs(const Pair& p, bool bayesian, double* bayes_ms, double* closed_m
   const NormalOptions normal_options{p.normal_k, 10 * std::max(p.target_voxel, 0.01)};
   std::unique_ptr<KdTreeTarget> tgt_ptr;
   tbb::parallel_invoke(
-      [&] { src = VoxelDownsamplePoints(FinitePointsOf(ReadPointCloud(p.source)), p.source_voxel); },
+      [&] { src = VoxelDownsamplePoints(ReadPointPositions(p.source), p.source_voxel); },
       [&] {
-        tgt_points = VoxelDownsamplePoints(FinitePointsOf(ReadPointCloud(p.target)), p.target_voxel);
+        tgt_points = VoxelDownsamplePoints(ReadPointPositions(p.target), p.target_voxel);
         tgt_ptr = std::make_unique<KdTreeTarget>(tgt_points, normal_options);
       });
   const KdTreeTarget& tgt = *tgt_ptr;
@@ -131,8 +131,8 @@ void OurStages(const Pair& p, int repeats) {
   size_t n_src = 0, n_tgt = 0, n_normals = 0;
   for (int k = 0; k < repeats; ++k) {
     auto t = Clock::now();
-    const PointSet src_raw = FinitePointsOf(ReadPointCloud(p.source));
-    const PointSet tgt_raw = FinitePointsOf(ReadPointCloud(p.target));
+    const PointSet src_raw = ReadPointPositions(p.source);
+    const PointSet tgt_raw = ReadPointPositions(p.target);
     load.push_back(Ms(t));
     t = Clock::now();
     if (p.source.size() > 4 && p.source.substr(p.source.size() - 4) == ".pcd") {
@@ -440,7 +440,7 @@ int main(int argc, char** argv) {
     pairs.push_back(p);
   }
   if (stages) {
-    std::printf("lisfm stages (ms, median): load = both files through ReadPointCloud (+ FinitePointsOf); "
+    std::printf("lisfm stages (ms, median): load = both files through ReadPointPositions; "
                 "PCL reader = the same two PCDs through ReadPcdWithPclReader, for comparison\n");
     std::printf("| pair | load | (PCL reader) | voxel grids | tree | registration | iterations | "
                 "source / target / normals estimated |\n|---|---|---|---|---|---|---|---|\n");
