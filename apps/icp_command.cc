@@ -116,6 +116,10 @@ int RunIcp(int argc, char** argv) {
                  "spatial cells of the per-pair (cluster sandwich) noise estimate");
   options.AddDouble("Bayesian.noise_sigma_scale", &bayes.noise_sigma_scale,
                     "multiplies the per-pair likelihood sigma (fitted on simulated office pairs)");
+  options.AddBool("Bayesian.plane_fit_variance", &bayes.plane_fit_variance,
+                  "per-correspondence variance from the target plane fit (normal uncertainty x offset)");
+  options.AddBool("Bayesian.block_tempering", &bayes.block_tempering,
+                  "rescale the rotation / translation blocks of the posterior to the cluster jackknife");
   options.AddDouble("Bayesian.prior_sigma_rotation", &bayes.prior_sigma_rotation_rad,
                     "Gaussian prior on the pose around --init_path, rotation sigma (rad; 0 = flat)");
   options.AddDouble("Bayesian.prior_sigma_translation", &bayes.prior_sigma_translation_m,

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <memory>
 #include <random>
 
 #include <Eigen/Cholesky>
@@ -27,11 +28,24 @@ struct BatchSums {
 // Point-to-plane terms re-associated at every pose (the ICP SgldModel).
 class PointToPlaneModel : public SgldModel {
  public:
+  // variance_model (optional): each term's IRLS weight is multiplied by
+  // variance_reference_m2 / v_i, v_i re-evaluated for the match made at each pose.
   PointToPlaneModel(const PointSet& source,
                     const std::vector<Eigen::Vector3f>& normals,
                     const IcpTarget& target,
-                    const IcpOptions& options)
-      : source_(source), normals_(normals), target_(target), base_(SE3(), options) {}
+                    const IcpOptions& options,
+                    const CorrespondenceVarianceModel* variance_model = nullptr,
+                    double variance_reference_m2 = 0)
+      : source_(source),
+        normals_(normals),
+        target_(target),
+        base_(SE3(), options),
+        variance_model_(variance_model),
+        variance_reference_m2_(variance_reference_m2) {}
+
+  // Per source point, the target index of its match at the mode (kNoHint: none),
+  // e.g. ComputeClusterSandwich's matched_target_indices; used as search hints.
+  void SetHints(std::vector<uint32_t> hints) { hints_ = std::move(hints); }
 
   size_t NumTerms() const override { return source_.size(); }
 
@@ -42,10 +56,25 @@ class PointToPlaneModel : public SgldModel {
     ctx.translation_f = T.translation().cast<float>();
     internal::LinearizedTerm term;
     const Eigen::Vector3f n = normals_.empty() ? Eigen::Vector3f::Zero() : normals_[i];
-    if (!internal::LinearizePoint(target_, ctx, source_[i], n, &term)) return false;
+    if (variance_model_ == nullptr) {
+      if (!internal::LinearizePoint(target_, ctx, source_[i], n, &term)) return false;
+      *weight = term.weight;
+    } else {
+      // MatchWithHint returns Match()'s result and the matched index; the hint (this
+      // point's match at the mode, read-only here) only bounds the search.
+      const Eigen::Vector3f p_t = ctx.rotation_f * source_[i] + ctx.translation_f;
+      const Eigen::Vector3f n_t = ctx.rotation_f * n;
+      Eigen::Vector3f q, nq;
+      uint32_t hint = hints_.empty() ? IcpTarget::kNoHint : hints_[i];
+      if (!target_.MatchWithHint(p_t, n_t, ctx.max_distance_m, ctx.min_cos_normal_angle,
+                                 ctx.min_planarity, &q, &nq, &hint)) {
+        return false;
+      }
+      internal::LinearizeMatch(ctx, source_[i], q, nq, &term);
+      *weight = term.weight * variance_reference_m2_ / variance_model_->Variance(hint, nq, p_t - q);
+    }
     *residual = term.residual;
     *jacobian = term.jacobian;
-    *weight = term.weight;
     return true;
   }
 
@@ -54,6 +83,9 @@ class PointToPlaneModel : public SgldModel {
   const std::vector<Eigen::Vector3f>& normals_;
   const IcpTarget& target_;
   internal::LinearizationContext base_;
+  const CorrespondenceVarianceModel* variance_model_;
+  double variance_reference_m2_;
+  std::vector<uint32_t> hints_;  // per source point: target index of its match at the mode
 };
 
 }  // namespace
@@ -67,7 +99,8 @@ bool SgldOptions::Check() const {
 bool BayesianIcpOptions::Check() const {
   return icp.Check() && sgld.Check() && noise_sigma_m >= 0 && noise_sigma_scale > 0 &&
          correlation_length_m >= 0 && num_correlation_cells >= 0 && num_correlation_cells != 1 &&
-         prior_sigma_rotation_rad >= 0 && prior_sigma_translation_m >= 0;
+         prior_sigma_rotation_rad >= 0 && prior_sigma_translation_m >= 0 &&
+         correspondence_variance.Check();
 }
 
 SgldResult SampleSgld(const SgldModel& model,
@@ -206,15 +239,41 @@ BayesianIcpResult RegisterBayesian(const PointSet& source,
   BayesianIcpResult result;
   result.icp = RegisterPointToPlane(source, target, initial, options.icp, source_normals);
   double sigma = options.noise_sigma_m;
+  std::unique_ptr<CorrespondenceVarianceModel> variance_model;
+  double variance_reference_m2 = 0;
+  std::vector<uint32_t> mode_matches;
   if (sigma <= 0) {
+    const auto* kd_target = dynamic_cast<const KdTreeTarget*>(&target);
+    if (options.plane_fit_variance && kd_target != nullptr) {
+      variance_model =
+          std::make_unique<CorrespondenceVarianceModel>(*kd_target, options.correspondence_variance);
+    }
     // Per-pair likelihood scale from the cluster-robust sandwich at the ICP optimum.
     const size_t cells = static_cast<size_t>(options.num_correlation_cells);
     result.cell_size_m =
         cells > 0 ? CellSizeForClusterCount(source, cells) : options.correlation_length_m;
     const ClusterSandwich sandwich =
         ComputeClusterSandwich(source, target, result.icp.target_from_source, options.icp,
-                               result.cell_size_m, source_normals);
+                               result.cell_size_m, source_normals, variance_model.get(),
+                               &mode_matches);
+    variance_reference_m2 = sandwich.variance_reference_m2;
     sigma = options.noise_sigma_scale * std::sqrt(sandwich.effective_variance_m2);
+    if (options.block_tempering) {
+      // Block factors f_b = tr(L_bb^-1 A_bb) / 3, L = sigma_eff^2 H^-1 the tempered
+      // Laplace covariance and A the jackknife: the expected NEES / 3 of each 3x3
+      // marginal of L under errors ~ N(0, A). Clamped to [1/16, 16] (a cell alone
+      // determining a block makes the jackknife block arbitrarily large or small).
+      const Mat6 laplace = sandwich.effective_variance_m2 * SafeInverse(sandwich.hessian);
+      const Mat6& jack = sandwich.jackknife_covariance;
+      const double f_rot =
+          laplace.topLeftCorner<3, 3>().llt().solve(jack.topLeftCorner<3, 3>()).trace() / 3.0;
+      const double f_trans =
+          laplace.bottomRightCorner<3, 3>().llt().solve(jack.bottomRightCorner<3, 3>()).trace() / 3.0;
+      auto clamp_factor = [](double f) {
+        return std::isfinite(f) && f > 0 ? std::clamp(f, 1.0 / 16.0, 16.0) : 1.0;
+      };
+      result.block_factors << clamp_factor(f_rot), clamp_factor(f_trans);
+    }
     result.num_clusters = sandwich.num_clusters;
     // A perfect fit (synthetic data) has zero residuals: floor sigma at 1 um.
     sigma = std::max(sigma, 1e-6);
@@ -232,9 +291,22 @@ BayesianIcpResult RegisterBayesian(const PointSet& source,
     prior_precision.tail<3>().setConstant(1.0 / std::pow(options.prior_sigma_translation_m, 2));
   }
   prior.information = prior_precision.asDiagonal();
-  const PointToPlaneModel model(source, source_normals, target, options.icp);
+  PointToPlaneModel model(source, source_normals, target, options.icp, variance_model.get(),
+                          variance_reference_m2);
+  model.SetHints(std::move(mode_matches));
   result.posterior = SampleSgld(model, result.icp.target_from_source, result.noise_sigma_m,
                                 options.sgld, prior);
+  if (result.block_factors != Eigen::Vector2d::Ones()) {
+    // Rescale the rotation and translation blocks of the posterior about its mean.
+    Vec6 d;
+    d << Eigen::Vector3d::Constant(std::sqrt(result.block_factors(0))),
+        Eigen::Vector3d::Constant(std::sqrt(result.block_factors(1)));
+    result.posterior.covariance = d.asDiagonal() * result.posterior.covariance * d.asDiagonal();
+    const SE3 mean_inverse = result.posterior.mean.Inverse();
+    for (SE3& sample : result.posterior.samples) {
+      sample = result.posterior.mean * SE3::Exp(d.asDiagonal() * (mean_inverse * sample).Log());
+    }
+  }
   return result;
 }
 

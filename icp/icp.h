@@ -183,6 +183,8 @@ class KdTreeTarget : public IcpTarget {
   void NormalAt(size_t index, Eigen::Vector3f* normal, float* planarity) const;
   // How many normals have been estimated and cached so far.
   size_t NumNormalsEstimated() const;
+  // The neighbourhood options of the estimated normals (defaults when normals were given).
+  const NormalOptions& normal_options() const { return normal_options_; }
 
  private:
   // The normal checks of a nearest point `index` (planarity, normal angle);

@@ -87,26 +87,164 @@ double CellSizeForClusterCount(const PointSet& points, size_t num_cells) {
   return small;
 }
 
+PlaneFit FitPlane(const std::vector<Eigen::Vector3d>& points) {
+  PlaneFit fit;
+  fit.count = static_cast<int>(points.size());
+  if (points.size() < 3) return fit;
+  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d outer = Eigen::Matrix3d::Zero();
+  for (const Eigen::Vector3d& p : points) {
+    const Eigen::Vector3d d = p - points[0];
+    sum += d;
+    outer.noalias() += d * d.transpose();
+  }
+  const double n = static_cast<double>(points.size());
+  const Eigen::Vector3d mean = sum / n;
+  const Eigen::Matrix3d cov = outer / n - mean * mean.transpose();
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig;
+  eig.computeDirect(cov);
+  if (!(eig.eigenvalues()(2) > 0)) return fit;
+  fit.eigenvalues = eig.eigenvalues().cwiseMax(0.0);
+  fit.eigenvectors = eig.eigenvectors();
+  return fit;
+}
+
+Eigen::Matrix3d PlaneFitNormalCovariance(const PlaneFit& fit, double max_tilt_variance_rad2) {
+  Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+  if (fit.count < 3 || !(fit.eigenvalues(2) > 0)) return cov;
+  const double l0 = fit.eigenvalues(0);
+  for (int j = 1; j < 3; ++j) {
+    const double lj = fit.eigenvalues(j);
+    const double gap = lj - l0;
+    const double num = l0 * lj;
+    // min(t_max, l0 lj / (k gap^2)) without dividing by a vanishing gap.
+    const double tilt = num >= max_tilt_variance_rad2 * fit.count * gap * gap
+                            ? max_tilt_variance_rad2
+                            : num / (fit.count * gap * gap);
+    cov.noalias() += tilt * fit.eigenvectors.col(j) * fit.eigenvectors.col(j).transpose();
+  }
+  return cov;
+}
+
+bool CorrespondenceVarianceOptions::Check() const {
+  return plane_variance_weight >= 0 && max_tilt_variance_rad2 >= 0 && floor_m2 > 0;
+}
+
+namespace {
+constexpr uint8_t kStatsUnknown = 0, kStatsBusy = 1, kStatsReady = 2;
+}  // namespace
+
+CorrespondenceVarianceModel::CorrespondenceVarianceModel(const KdTreeTarget& target,
+                                                         const CorrespondenceVarianceOptions& options)
+    : target_(target), options_(options), stats_(target.size()) {
+  THROW_CHECK_MSG(options.Check(), "invalid CorrespondenceVarianceOptions");
+  state_ = std::make_unique<std::atomic<uint8_t>[]>(target.size());  // value-initialised: 0
+}
+
+CorrespondenceVarianceModel::~CorrespondenceVarianceModel() = default;
+
+CorrespondenceVarianceModel::Stats CorrespondenceVarianceModel::StatsAt(uint32_t index) const {
+  THROW_CHECK_LT(static_cast<size_t>(index), stats_.size());
+  std::atomic<uint8_t>& state = state_[index];
+  uint8_t s = state.load(std::memory_order_acquire);
+  if (s == kStatsReady) return stats_[index];
+  // The same neighbourhood as KdTreeTarget's normal (EstimateNormalAt).
+  constexpr size_t kMaxNeighbors = 64;
+  const NormalOptions& no = target_.normal_options();
+  const PointSet& pts = target_.tree().points();
+  const size_t k = std::min(static_cast<size_t>(no.num_neighbors), kMaxNeighbors);
+  const float max_sq = static_cast<float>(no.max_radius_m * no.max_radius_m);
+  uint32_t idx[kMaxNeighbors];
+  float d2[kMaxNeighbors];
+  const size_t n = target_.tree().Knn(pts[index], k, idx, d2);
+  std::vector<Eigen::Vector3d> neighbours;
+  neighbours.reserve(n);
+  for (size_t j = 0; j < n && d2[j] <= max_sq; ++j) {
+    neighbours.push_back((pts[idx[j]] - pts[index]).cast<double>());
+  }
+  const PlaneFit fit = FitPlane(neighbours);
+  const Eigen::Matrix3d c = PlaneFitNormalCovariance(fit, options_.max_tilt_variance_rad2);
+  Stats st;
+  st.l0 = static_cast<float>(fit.eigenvalues(0));
+  const float values[6] = {static_cast<float>(c(0, 0)), static_cast<float>(c(0, 1)),
+                           static_cast<float>(c(0, 2)), static_cast<float>(c(1, 1)),
+                           static_cast<float>(c(1, 2)), static_cast<float>(c(2, 2))};
+  std::copy(values, values + 6, st.cov);
+  if (s == kStatsUnknown &&
+      state.compare_exchange_strong(s, kStatsBusy, std::memory_order_acquire)) {
+    stats_[index] = st;
+    state.store(kStatsReady, std::memory_order_release);
+  }
+  // (A thread that finds the slot busy keeps its own, identical, result.)
+  return st;
+}
+
+double CorrespondenceVarianceModel::Variance(uint32_t target_index, const Eigen::Vector3f& normal,
+                                             const Eigen::Vector3f& offset) const {
+  const Stats st = StatsAt(target_index);
+  const Eigen::Vector3f d = offset - normal * normal.dot(offset);
+  const float* c = st.cov;
+  const double quad = c[0] * d.x() * d.x() + c[3] * d.y() * d.y() + c[5] * d.z() * d.z() +
+                      2.0f * (c[1] * d.x() * d.y() + c[2] * d.x() * d.z() + c[4] * d.y() * d.z());
+  return options_.plane_variance_weight * st.l0 + std::max(quad, 0.0) + options_.floor_m2;
+}
+
 ClusterSandwich ComputeClusterSandwich(const PointSet& source,
                                        const IcpTarget& target,
                                        const SE3& target_from_source,
                                        const IcpOptions& options,
                                        double cell_size_m,
-                                       const std::vector<Eigen::Vector3f>& source_normals) {
+                                       const std::vector<Eigen::Vector3f>& source_normals,
+                                       const CorrespondenceVarianceModel* variance_model,
+                                       std::vector<uint32_t>* matched_target_indices) {
   CheckIcpSource(source, source_normals);
   THROW_CHECK_MSG(options.Check(), "invalid IcpOptions");
   THROW_CHECK_GE(cell_size_m, 0.0);
+  THROW_CHECK_MSG(variance_model == nullptr || &variance_model->target() == &target,
+                  "CorrespondenceVarianceModel built for another target");
   const size_t n = source.size();
   const internal::LinearizationContext ctx(target_from_source, options);
   std::vector<internal::LinearizedTerm> terms(n);
   std::vector<uint8_t> valid(n, 0);
+  std::vector<double> variances(variance_model != nullptr ? n : 0, 0.0);
+  if (matched_target_indices != nullptr) matched_target_indices->assign(n, IcpTarget::kNoHint);
   tbb::parallel_for(tbb::blocked_range<size_t>(0, n, 512), [&](const tbb::blocked_range<size_t>& r) {
     for (size_t i = r.begin(); i != r.end(); ++i) {
       const Eigen::Vector3f nrm =
           source_normals.empty() ? Eigen::Vector3f::Zero() : source_normals[i];
-      valid[i] = internal::LinearizePoint(target, ctx, source[i], nrm, &terms[i]) ? 1 : 0;
+      if (variance_model == nullptr) {
+        valid[i] = internal::LinearizePoint(target, ctx, source[i], nrm, &terms[i]) ? 1 : 0;
+        continue;
+      }
+      // MatchWithHint without a hint: Match()'s result, and the matched index.
+      const Eigen::Vector3f p_t = ctx.rotation_f * source[i] + ctx.translation_f;
+      Eigen::Vector3f q, nq;
+      uint32_t index = IcpTarget::kNoHint;
+      valid[i] = target.MatchWithHint(p_t, ctx.rotation_f * nrm, ctx.max_distance_m,
+                                      ctx.min_cos_normal_angle, ctx.min_planarity, &q, &nq, &index)
+                     ? 1
+                     : 0;
+      if (valid[i]) {
+        internal::LinearizeMatch(ctx, source[i], q, nq, &terms[i]);
+        variances[i] = variance_model->Variance(index, nq, p_t - q);
+        if (matched_target_indices != nullptr) (*matched_target_indices)[i] = index;
+      }
     }
   });
+  double variance_reference = 0;
+  if (variance_model != nullptr) {
+    size_t count = 0;
+    for (size_t i = 0; i < n; ++i) {
+      if (valid[i]) {
+        variance_reference += variances[i];
+        ++count;
+      }
+    }
+    variance_reference = count > 0 ? variance_reference / static_cast<double>(count) : 0.0;
+    for (size_t i = 0; i < n; ++i) {
+      if (valid[i]) terms[i].weight *= variance_reference / variances[i];
+    }
+  }
   // Serial accumulation in point order: deterministic, independent of threads.
   ClusterSandwich out;
   std::unordered_map<uint64_t, size_t> cell_index;
@@ -131,6 +269,7 @@ ClusterSandwich ComputeClusterSandwich(const PointSet& source,
     cell_hessians[c].noalias() += t.jacobian.transpose() * t.jacobian * t.weight;
   }
   out.num_clusters = cell_scores.size();
+  out.variance_reference_m2 = variance_reference;
   if (out.num_terms < 7 || out.num_clusters < 2) {
     throw InputError("ICP correspondences", "",
                      fmt::format("expected at least 7 matches in 2 cells for a cluster sandwich, "

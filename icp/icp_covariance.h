@@ -22,6 +22,9 @@
 // a variance of 1e12 (m^2 / rad^2) instead of an exception: "unknown".
 #pragma once
 
+#include <atomic>
+#include <cstdint>
+#include <memory>
 #include <vector>
 
 #include <Eigen/Core>
@@ -36,6 +39,71 @@ Mat6 CensiCovariance(const IcpResult& result);
 
 // Inverse of a symmetric PSD 6x6 with the 1e12 rule above.
 Mat6 SafeInverse(const Mat6& information);
+
+// ---- Heteroscedastic per-correspondence variance (plane-fit uncertainty) ----
+//
+// A point-to-plane residual r = n^T (p - q) (p the mapped source point, q the
+// matched target point, n its PCA normal, all in the target frame) carries, beyond
+// the range noise, the error of the fitted normal times the tangential offset
+// d = (I - n n^T)(p - q): r_err ~ dn^T d. On spinning-LiDAR scans a far target
+// point's k neighbours often lie on one or two rings, its normal is badly determined
+// about the ring direction, and a source point from the other scan sits across the
+// rings from it (|d| large): such residuals are large, shared along the ring
+// segment (correlated) and carry the most rotation leverage. The model
+//   v_i = plane_variance_weight * l0 + d^T Cov(n) d + floor_m2            (m^2)
+// gives them their own variance, with l0 the smallest eigenvalue of the target
+// neighbourhood covariance (the out-of-plane scatter: noise of q, and by symmetry of
+// p) and, by the asymptotic distribution of a sample covariance's eigenvector
+// (Anderson 1963; the plane-fit normal is the eigenvector of l0 among k points),
+//   Cov(n) = sum_{j=1,2} min(t_max, l0 l_j / (k (l_j - l0)^2)) e_j e_j^T   (rad^2),
+// l0 <= l1 <= l2 the eigenvalues and e_j the eigenvectors of the neighbourhood
+// covariance, k the neighbour count. A tilt variance of an in-plane direction
+// spread l_j ~ sigma^2 / (k l_j) (sigma^2 = l0), capped at t_max where the
+// neighbourhood is a line (one ring) or a blob.
+struct PlaneFit {
+  Eigen::Vector3d eigenvalues = Eigen::Vector3d::Zero();    // ascending, m^2 (population covariance)
+  Eigen::Matrix3d eigenvectors = Eigen::Matrix3d::Identity();  // columns, col(0) the normal
+  int count = 0;                                            // points used
+};
+
+// PCA of `points` (covariance about their mean; offsets from points[0] for
+// stability). count < 3 or a zero spread: count is set but eigenvalues stay zero.
+PlaneFit FitPlane(const std::vector<Eigen::Vector3d>& points);
+
+// Cov(n) of the formula above (3x3, rad^2, in the span of e1, e2); zero for count < 3.
+Eigen::Matrix3d PlaneFitNormalCovariance(const PlaneFit& fit, double max_tilt_variance_rad2);
+
+struct CorrespondenceVarianceOptions {
+  double plane_variance_weight = 2.0;     // multiplies l0 (q's and p's own scatter; 2 = both)
+  double max_tilt_variance_rad2 = 0.25;   // t_max: cap of a normal tilt variance (rad^2)
+  double floor_m2 = 1e-6;                 // added to every v_i (m^2): 1 mm^2, keeps weights finite
+  bool Check() const;
+};
+
+// Per-target-point plane statistics of a KdTreeTarget (the same k-neighbourhoods as
+// its normals: target.normal_options()), computed lazily the first time a target
+// point is asked for and cached (thread-safe, deterministic). Immutable interface.
+class CorrespondenceVarianceModel {
+ public:
+  CorrespondenceVarianceModel(const KdTreeTarget& target, const CorrespondenceVarianceOptions& options);
+  ~CorrespondenceVarianceModel();
+  // v_i (m^2) of the residual of a match of target point `target_index` with unit
+  // normal `normal`, offset = p - q (target frame, m).
+  double Variance(uint32_t target_index, const Eigen::Vector3f& normal,
+                  const Eigen::Vector3f& offset) const;
+  const KdTreeTarget& target() const { return target_; }
+
+ private:
+  struct Stats {
+    float l0 = 0;                 // smallest eigenvalue (m^2)
+    float cov[6] = {0, 0, 0, 0, 0, 0};  // Cov(n) upper triangle xx xy xz yy yz zz (rad^2)
+  };
+  Stats StatsAt(uint32_t index) const;
+  const KdTreeTarget& target_;
+  CorrespondenceVarianceOptions options_;
+  mutable std::vector<Stats> stats_;
+  mutable std::unique_ptr<std::atomic<uint8_t>[]> state_;  // 0 unknown, 1 busy, 2 ready
+};
 
 struct ClusterSandwich {
   Mat6 hessian = Mat6::Zero();     // H = sum w J^T J over the matched source points
@@ -61,6 +129,12 @@ struct ClusterSandwich {
   // 6x6 matrix S itself is far too noisy to use (docs: bench_icp_covariance.sh).
   double effective_variance_m2 = 0;            // from the jackknife (CR3), used by RegisterBayesian
   double effective_variance_cr1_m2 = 0;        // from CR1: tr(H^-1 M_c) / 6
+  // With a CorrespondenceVarianceModel: every term is weighted by
+  // variance_reference_m2 / v_i (the IRLS weight times that), where
+  // variance_reference_m2 is the mean v_i over the matches; all sums above
+  // (hessian, meat, residual variance, effective variances) use those weights, so
+  // the variances keep their meaning "per correspondence of average v". 0 without a model.
+  double variance_reference_m2 = 0;
 };
 
 // The edge (m) of a coarse cubic grid (origin-anchored, source frame) whose
@@ -82,6 +156,9 @@ double CellSizeForClusterCount(const PointSet& points, size_t num_cells);
 // rejection and robust weights as RegisterPointToPlane with `options`), groups the
 // matches by the cubic cell of edge `cell_size_m` (source frame) that holds the
 // source point, and returns the cluster-robust sandwich (CR1 and jackknife).
+// variance_model (optional; its target must be `target`): heteroscedastic weights,
+// see ClusterSandwich::variance_reference_m2. matched_target_indices (optional,
+// with a model): per source point the matched target index, IcpTarget::kNoHint if none.
 // cell_size_m = 0 puts every point in its own cluster (the Censi/HC1 form). Throws InputError for bad clouds (as
 // RegisterPointToPlane) and when fewer than 7 points or 2 clusters match.
 ClusterSandwich ComputeClusterSandwich(const PointSet& source,
@@ -89,7 +166,9 @@ ClusterSandwich ComputeClusterSandwich(const PointSet& source,
                                        const SE3& target_from_source,
                                        const IcpOptions& options,
                                        double cell_size_m,
-                                       const std::vector<Eigen::Vector3f>& source_normals = {});
+                                       const std::vector<Eigen::Vector3f>& source_normals = {},
+                                       const CorrespondenceVarianceModel* variance_model = nullptr,
+                                       std::vector<uint32_t>* matched_target_indices = nullptr);
 
 // One registration outcome for calibration: estimate, its covariance (right
 // perturbation) and the true transform.
