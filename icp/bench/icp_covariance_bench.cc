@@ -32,7 +32,8 @@
 // Usage: lisfm_icp_covariance_bench [pairs_per_scene=100] [--fresh H S]
 //        [--cells G] [--scale C (skip the fit)] [--tune_only] [--tune_grid] [--timing]
 //        [--plane | --no_plane] [--block | --no_block] [--plane_weight A]
-//        [--max_tilt T] [--floor F] [--office_seed S] [--iterations N]   (variants, exploration)
+//        [--max_tilt T] [--floor F] [--office_seed S] [--iterations N]
+//        [--normal_k K (target normals, default 10)] [--min_planarity P]   (variants, exploration)
 // LISFM_COV_DEBUG=1 prints per-pair diagnostics of every Bayesian run.
 #include <algorithm>
 #include <chrono>
@@ -76,6 +77,8 @@ struct MethodRun {
   double total_ms = 0;
 };
 
+int g_normal_k = 10;  // --normal_k (exploration)
+
 std::vector<PreparedPair> Prepare(const std::string& type, int count, uint32_t seed,
                                   double* sim_ms, double source_voxel = kSourceVoxel) {
   const auto t0 = Clock::now();
@@ -100,7 +103,7 @@ std::vector<PreparedPair> Prepare(const std::string& type, int count, uint32_t s
     q.source = VoxelDownsamplePoints(FinitePointsOf(p.source), source_voxel);
     q.target = std::make_unique<KdTreeTarget>(
         VoxelDownsamplePoints(FinitePointsOf(p.target), kTargetVoxel),
-        NormalOptions{10, 10 * kTargetVoxel});
+        NormalOptions{g_normal_k, 10 * kTargetVoxel});
     q.truth = p.truth;
     q.initial = p.initial;
     out.push_back(std::move(q));
@@ -109,10 +112,13 @@ std::vector<PreparedPair> Prepare(const std::string& type, int count, uint32_t s
   return out;
 }
 
+double g_min_planarity = 0.0;  // --min_planarity (exploration)
+
 IcpOptions BenchIcpOptions() {
   IcpOptions o;
   o.max_correspondence_distance_m = 1.0;
   o.kernel_scale_m = 0.1;
+  o.min_planarity = g_min_planarity;
   return o;
 }
 
@@ -373,6 +379,10 @@ int Main(int argc, char** argv) {
       plane_config.block = true;
     } else if (std::strcmp(argv[i], "--no_block") == 0) {
       plane_config.block = false;
+    } else if (std::strcmp(argv[i], "--normal_k") == 0 && i + 1 < argc) {
+      g_normal_k = std::atoi(argv[++i]);
+    } else if (std::strcmp(argv[i], "--min_planarity") == 0 && i + 1 < argc) {
+      g_min_planarity = std::atof(argv[++i]);
     } else if (std::strcmp(argv[i], "--tune_grid") == 0) {
       tune_grid = true;
     } else if (std::strcmp(argv[i], "--fresh") == 0 && i + 2 < argc) {
@@ -430,6 +440,16 @@ int Main(int argc, char** argv) {
     const CalibrationStats sj = EvaluateCovarianceCalibration(jack.samples);
     double rot = 0, trans = 0;
     BlockNees(bayes, &rot, &trans);
+    {
+      std::vector<double> er, et;
+      for (const auto& smp : bayes.samples) {
+        const Vec6 e = (smp.estimate.Inverse() * smp.truth).Log();
+        er.push_back(e.head<3>().norm() * 180.0 / M_PI);
+        et.push_back(e.tail<3>().norm() * 1e3);
+      }
+      std::printf("  (normal k %d, min_planarity %.2f: posterior-mean median error %.3f deg / %.1f mm)\n",
+                  g_normal_k, g_min_planarity, Median(er), Median(et));
+    }
     std::printf("tuning (office): plane variance %s, block tempering %s (weight %.2f, max tilt %.3f rad^2, floor %.1e m^2), "
                 "cells %d, scale %.3f -> Bayesian coverage %.1f %%, mean NEES %.2f, median %.2f, "
                 "coverage at mean NEES 6: %.1f %%, block NEES rot / trans %.2f / %.2f (median variance "
