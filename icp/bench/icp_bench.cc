@@ -365,7 +365,7 @@ void KnnRow(const std::string& name, const PointSet& target, const PointSet& que
 }
 
 void KnnComparison(const std::string& dir) {
-  std::printf("| workload (1 thread) | lisfm build / query | nanoflann build / query | FLANN build / query | nanoflann / lisfm query | results |\n|---|---|---|---|---|---|\n");
+  std::printf("| workload (queries on 1 thread) | lisfm build / query | nanoflann build / query | FLANN build / query | nanoflann / lisfm query | results |\n|---|---|---|---|---|---|\n");
   {
     const PointSet target = FinitePointsOf(ReadPointCloud(dir + "/registration_lidar_pair/251370668.pcd"));
     const PointSet queries = FinitePointsOf(ReadPointCloud(dir + "/registration_lidar_pair/251371071.pcd"));

@@ -28,7 +28,7 @@
 // "prior" rows that add a Gaussian prior equal to the distribution the initial
 // guess was drawn from (2 deg / 10 cm per axis). --fresh H S adds hall / staircase
 // pairs of seeds H / S (fresh held-out sets; session 4 used 22/23 for its first
-// try and 32/33 for its second).
+// try and 32/33 for its second, the lead 42/43 for a third).
 // Usage: lisfm_icp_covariance_bench [pairs_per_scene=100] [--fresh H S]
 //        [--cells G] [--scale C (skip the fit)] [--tune_only] [--tune_grid] [--timing]
 //        [--plane | --no_plane] [--block | --no_block] [--plane_weight A]
