@@ -740,63 +740,81 @@ bool LzfDecompress(const uint8_t* in, size_t in_size, std::vector<uint8_t>* out)
   return op == end;
 }
 
-// Decodes the body of a binary or binary_compressed PCD `file` (header `h`
-// already validated: sizes, truncation, announced sizes).
-// The records of a binary body, or the field blocks of a binary_compressed one
-// (LZF-decoded into *unpacked).
-const uint8_t* PcdBodyData(const std::string& path, const PcdHeader& h, std::string_view file,
-                           std::vector<uint8_t>* unpacked) {
-  const uint8_t* data = reinterpret_cast<const uint8_t*>(file.data()) + h.data_offset;
-  if (h.data != "binary_compressed") return data;
-  const uint64_t needed = h.points * h.point_bytes;
-  uint32_t compressed_bytes = 0;
-  std::memcpy(&compressed_bytes, data, 4);
-  unpacked->resize(needed);
-  if (!LzfDecompress(data + 8, compressed_bytes, unpacked)) {
-    throw InputError(path, Where(h.data_line),
-                     "binary_compressed data is corrupt (the LZF stream does not decode to " +
-                         std::to_string(needed) + " bytes)");
+// The body of a binary or binary_compressed PCD `file` (header `h` already
+// validated: sizes, truncation, announced sizes): the records of a binary body, or
+// the field blocks of a binary_compressed one (LZF-decoded here), with its x y z
+// fields located.
+class PcdBody {
+ public:
+  PcdBody(const std::string& path, const PcdHeader& h, std::string_view file)
+      : compressed_(h.data == "binary_compressed"), point_bytes_(h.point_bytes) {
+    data_ = reinterpret_cast<const uint8_t*>(file.data()) + h.data_offset;
+    if (compressed_) {
+      const uint64_t needed = h.points * h.point_bytes;
+      uint32_t compressed_bytes = 0;
+      std::memcpy(&compressed_bytes, data_, 4);
+      unpacked_.resize(needed);
+      if (!LzfDecompress(data_ + 8, compressed_bytes, &unpacked_)) {
+        throw InputError(path, Where(h.data_line),
+                         "binary_compressed data is corrupt (the LZF stream does not decode to " +
+                             std::to_string(needed) + " bytes)");
+      }
+      data_ = unpacked_.data();
+    }
+    x_ = Field(path, h, "x", true);
+    y_ = Field(path, h, "y", true);
+    z_ = Field(path, h, "z", true);
+    xyz_float_ = x_.type == 'F' && x_.size == 4 && y_.type == 'F' && y_.size == 4 &&
+                 z_.type == 'F' && z_.size == 4;
   }
-  return unpacked->data();
-}
+  PcdFieldRef Field(const std::string& path, const PcdHeader& h, const std::string& name,
+                    bool required) const {
+    return FindPcdField(path, h, name, required, compressed_);
+  }
+  // Value of field f of point i: binary records are interleaved (stride =
+  // point_bytes); compressed bodies hold one block per field (stride = size).
+  const uint8_t* At(const PcdFieldRef& f, uint64_t i) const {
+    return data_ + f.offset + i * (compressed_ ? static_cast<uint64_t>(f.size) : point_bytes_);
+  }
+  double Value(const PcdFieldRef& f, uint64_t i) const { return LoadPcdValue(At(f, i), f.type, f.size); }
+  void Position(uint64_t i, float* x, float* y, float* z) const {
+    if (xyz_float_) {
+      std::memcpy(x, At(x_, i), 4);
+      std::memcpy(y, At(y_, i), 4);
+      std::memcpy(z, At(z_, i), 4);
+    } else {
+      *x = static_cast<float>(Value(x_, i));
+      *y = static_cast<float>(Value(y_, i));
+      *z = static_cast<float>(Value(z_, i));
+    }
+  }
+
+ private:
+  bool compressed_;
+  uint64_t point_bytes_;
+  const uint8_t* data_ = nullptr;
+  std::vector<uint8_t> unpacked_;
+  PcdFieldRef x_, y_, z_;
+  bool xyz_float_ = false;
+};
 
 PointCloud DecodePcdBody(const std::string& path, const PcdHeader& h, std::string_view file) {
-  const bool compressed = h.data == "binary_compressed";
-  std::vector<uint8_t> unpacked;
-  const uint8_t* data = PcdBodyData(path, h, file, &unpacked);
-  const PcdFieldRef x = FindPcdField(path, h, "x", true, compressed);
-  const PcdFieldRef y = FindPcdField(path, h, "y", true, compressed);
-  const PcdFieldRef z = FindPcdField(path, h, "z", true, compressed);
-  const PcdFieldRef intensity = FindPcdField(path, h, "intensity", false, compressed);
-  const PcdFieldRef t = FindPcdField(path, h, "t", false, compressed);
-  const PcdFieldRef ring = FindPcdField(path, h, "ring", false, compressed);
-  const PcdFieldRef sensor_id = FindPcdField(path, h, "sensor_id", false, compressed);
+  const PcdBody body(path, h, file);
+  const PcdFieldRef intensity = body.Field(path, h, "intensity", false);
+  const PcdFieldRef t = body.Field(path, h, "t", false);
+  const PcdFieldRef ring = body.Field(path, h, "ring", false);
+  const PcdFieldRef sensor_id = body.Field(path, h, "sensor_id", false);
   if (t.present && t.type != 'F') {
     throw InputError(path, "field t",
                      "expected float seconds since the scan stamp, found an integer type (e.g. Ouster "
                      "nanoseconds); convert the file first");
   }
-  // Value of field f of point i: binary records are interleaved (stride =
-  // point_bytes); compressed bodies hold one block per field (stride = size).
-  auto at = [&](const PcdFieldRef& f, uint64_t i) {
-    return data + f.offset + i * (compressed ? static_cast<uint64_t>(f.size) : h.point_bytes);
-  };
-  auto value = [&](const PcdFieldRef& f, uint64_t i) { return LoadPcdValue(at(f, i), f.type, f.size); };
+  auto value = [&](const PcdFieldRef& f, uint64_t i) { return body.Value(f, i); };
   PointCloud cloud;
   cloud.points.resize(h.points);
-  const bool xyz_float = x.type == 'F' && x.size == 4 && y.type == 'F' && y.size == 4 &&
-                         z.type == 'F' && z.size == 4;
   for (uint64_t i = 0; i < h.points; ++i) {
     LidarPoint& p = cloud.points[i];
-    if (xyz_float) {
-      std::memcpy(&p.x, at(x, i), 4);
-      std::memcpy(&p.y, at(y, i), 4);
-      std::memcpy(&p.z, at(z, i), 4);
-    } else {
-      p.x = static_cast<float>(value(x, i));
-      p.y = static_cast<float>(value(y, i));
-      p.z = static_cast<float>(value(z, i));
-    }
+    body.Position(i, &p.x, &p.y, &p.z);
     if (intensity.present) p.intensity = static_cast<float>(value(intensity, i));
     if (t.present) p.t = static_cast<float>(value(t, i));
     if (ring.present) {
@@ -823,30 +841,12 @@ PointCloud DecodePcdBody(const std::string& path, const PcdHeader& h, std::strin
 // same positions as DecodePcdBody followed by the finiteness filter).
 std::vector<Eigen::Vector3f> DecodePcdPositions(const std::string& path, const PcdHeader& h,
                                                 std::string_view file, size_t* num_non_finite) {
-  const bool compressed = h.data == "binary_compressed";
-  std::vector<uint8_t> unpacked;
-  const uint8_t* data = PcdBodyData(path, h, file, &unpacked);
-  const PcdFieldRef x = FindPcdField(path, h, "x", true, compressed);
-  const PcdFieldRef y = FindPcdField(path, h, "y", true, compressed);
-  const PcdFieldRef z = FindPcdField(path, h, "z", true, compressed);
-  const auto at = [&](const PcdFieldRef& f, uint64_t i) {
-    return data + f.offset + i * (compressed ? static_cast<uint64_t>(f.size) : h.point_bytes);
-  };
-  const bool xyz_float = x.type == 'F' && x.size == 4 && y.type == 'F' && y.size == 4 &&
-                         z.type == 'F' && z.size == 4;
+  const PcdBody body(path, h, file);
   std::vector<Eigen::Vector3f> out;
   out.reserve(h.points);
   for (uint64_t i = 0; i < h.points; ++i) {
     Eigen::Vector3f p;
-    if (xyz_float) {
-      std::memcpy(&p.x(), at(x, i), 4);
-      std::memcpy(&p.y(), at(y, i), 4);
-      std::memcpy(&p.z(), at(z, i), 4);
-    } else {
-      p << static_cast<float>(LoadPcdValue(at(x, i), x.type, x.size)),
-          static_cast<float>(LoadPcdValue(at(y, i), y.type, y.size)),
-          static_cast<float>(LoadPcdValue(at(z, i), z.type, z.size));
-    }
+    body.Position(i, &p.x(), &p.y(), &p.z());
     if (p.allFinite()) out.push_back(p);
   }
   if (num_non_finite != nullptr) *num_non_finite = h.points - out.size();
