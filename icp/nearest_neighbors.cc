@@ -304,33 +304,39 @@ PointSet VoxelDownsamplePoints(const PointSet& points, double voxel_size_m) {
   // 2^20) in an open-addressing table (linear probing, load <= 0.5). Same
   // first-appearance order and summation order as the hash map, hence
   // bit-identical output; ~3x faster than std::unordered_map on 100k points.
-  // The table grows with the number of voxels (doubling, rehashing the keys;
-  // the voxel order lives in `sums`, so it is unaffected): a downsampled scan
-  // has a fraction of its points' voxels, and a table sized for the points
-  // would not stay in cache.
+  // The table grows with the number of voxels (doubling and re-inserting the
+  // entries; each keeps its rank of first appearance, so the order is
+  // unaffected): a downsampled scan has a fraction of its points' voxels, and a
+  // table sized for the points would not stay in cache.
   constexpr int64_t kHalfRange = int64_t{1} << 20;
   constexpr uint64_t kEmpty = ~uint64_t{0};
+  // One table entry per voxel holds the key, the running sums and the voxel's
+  // rank of first appearance, so a point costs one random memory access (the
+  // points of a scan file are often not in scan order).
+  struct Entry {
+    uint64_t key;
+    double sum[3];
+    uint32_t count;
+    uint32_t order;  // rank of first appearance = output position
+  };
   size_t capacity = 1024;
   while (capacity < points.size() / 4) capacity *= 2;
   int shift = 64;
   for (size_t c = capacity; c > 1; c >>= 1) --shift;
-  std::vector<uint64_t> keys(capacity, kEmpty);
-  std::vector<uint32_t> slots(capacity);
-  std::vector<Eigen::Vector4d> sums;  // xyz sum, count
-  sums.reserve(points.size() / 4 + 16);
+  std::vector<Entry> table(capacity);
+  for (Entry& e : table) e.key = kEmpty;
+  uint32_t num_voxels = 0;
   const auto grow = [&] {
-    std::vector<uint64_t> old_keys(2 * capacity, kEmpty);
-    std::vector<uint32_t> old_slots(2 * capacity);
-    old_keys.swap(keys);
-    old_slots.swap(slots);
+    std::vector<Entry> old(2 * capacity);
+    for (Entry& e : old) e.key = kEmpty;
+    old.swap(table);
     capacity *= 2;
     --shift;
-    for (size_t j = 0; j < old_keys.size(); ++j) {
-      if (old_keys[j] == kEmpty) continue;
-      size_t h = static_cast<size_t>((old_keys[j] * 0x9E3779B97F4A7C15ULL) >> shift);
-      while (keys[h] != kEmpty) h = (h + 1) & (capacity - 1);
-      keys[h] = old_keys[j];
-      slots[h] = old_slots[j];
+    for (const Entry& e : old) {
+      if (e.key == kEmpty) continue;
+      size_t h = static_cast<size_t>((e.key * 0x9E3779B97F4A7C15ULL) >> shift);
+      while (table[h].key != kEmpty) h = (h + 1) & (capacity - 1);
+      table[h] = e;
     }
   };
   for (const auto& p : points) {
@@ -344,22 +350,26 @@ PointSet VoxelDownsamplePoints(const PointSet& points, double voxel_size_m) {
                          (static_cast<uint64_t>(static_cast<int64_t>(fy) + kHalfRange) << 21) |
                          static_cast<uint64_t>(static_cast<int64_t>(fz) + kHalfRange);
     size_t h = static_cast<size_t>((key * 0x9E3779B97F4A7C15ULL) >> shift);
-    while (keys[h] != kEmpty && keys[h] != key) h = (h + 1) & (capacity - 1);
-    if (keys[h] == kEmpty) {
-      keys[h] = key;
-      slots[h] = static_cast<uint32_t>(sums.size());
-      sums.emplace_back(Eigen::Vector4d::Zero());
-      if (2 * sums.size() > capacity) {
-        grow();  // h is stale now; the new voxel is the last one
-        sums.back() += Eigen::Vector4d(p.x(), p.y(), p.z(), 1.0);
-        continue;
+    while (table[h].key != kEmpty && table[h].key != key) h = (h + 1) & (capacity - 1);
+    if (table[h].key == kEmpty) {
+      table[h] = Entry{key, {0.0, 0.0, 0.0}, 0u, num_voxels++};
+      if (2 * static_cast<size_t>(num_voxels) > capacity) {
+        grow();  // h is stale now: find the new voxel again
+        h = static_cast<size_t>((key * 0x9E3779B97F4A7C15ULL) >> shift);
+        while (table[h].key != key) h = (h + 1) & (capacity - 1);
       }
     }
-    sums[slots[h]] += Eigen::Vector4d(p.x(), p.y(), p.z(), 1.0);
+    Entry& e = table[h];
+    e.sum[0] += p.x();
+    e.sum[1] += p.y();
+    e.sum[2] += p.z();
+    ++e.count;
   }
-  PointSet out(sums.size());
-  for (size_t i = 0; i < sums.size(); ++i) {
-    out[i] = (sums[i].head<3>() / sums[i].w()).cast<float>();
+  PointSet out(num_voxels);
+  for (const Entry& e : table) {
+    if (e.key == kEmpty) continue;
+    const double n = e.count;
+    out[e.order] = Eigen::Vector3d(e.sum[0] / n, e.sum[1] / n, e.sum[2] / n).cast<float>();
   }
   return out;
 }
