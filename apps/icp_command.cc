@@ -135,33 +135,35 @@ int RunIcp(int argc, char** argv) {
   const SE3 initial = init_path.empty() ? SE3() : ReadTransform(init_path);
   // The source chain (load, voxel grid) and the target chain (load, voxel
   // grid, KD-tree) are independent: one task each, so both cores work.
+  // Loads one cloud and times it: (points after voxel downsampling, count before).
+  struct Chain {
+    size_t full_size = 0;
+    double load_s = 0.0, prep_s = 0.0;
+    PointSet Run(const std::string& path, double voxel_m) {
+      const auto t0 = std::chrono::steady_clock::now();
+      const PointSet full = LoadPoints(path);
+      full_size = full.size();
+      load_s = Seconds(t0);
+      const auto t1 = std::chrono::steady_clock::now();
+      PointSet out = VoxelDownsamplePoints(full, voxel_m);
+      prep_s = Seconds(t1);
+      return out;
+    }
+  };
+  Chain source_chain, target_chain;
   PointSet source;
   std::unique_ptr<KdTreeTarget> target_ptr;
-  double source_load_s = 0.0, source_prep_s = 0.0, target_load_s = 0.0, target_prep_s = 0.0;
-  size_t source_full_size = 0, target_full_size = 0;
   tbb::parallel_invoke(
+      [&] { source = source_chain.Run(source_path, source_voxel_m); },
       [&] {
+        PointSet points = target_chain.Run(target_path, target_voxel_m);
         const auto t0 = std::chrono::steady_clock::now();
-        const PointSet full = LoadPoints(source_path);
-        source_full_size = full.size();
-        source_load_s = Seconds(t0);
-        const auto t1 = std::chrono::steady_clock::now();
-        source = VoxelDownsamplePoints(full, source_voxel_m);
-        source_prep_s = Seconds(t1);
-      },
-      [&] {
-        const auto t0 = std::chrono::steady_clock::now();
-        const PointSet full = LoadPoints(target_path);
-        target_full_size = full.size();
-        target_load_s = Seconds(t0);
-        const auto t1 = std::chrono::steady_clock::now();
-        target_ptr = std::make_unique<KdTreeTarget>(VoxelDownsamplePoints(full, target_voxel_m),
-                                                    normal_options);
-        target_prep_s = Seconds(t1);
+        target_ptr = std::make_unique<KdTreeTarget>(std::move(points), normal_options);
+        target_chain.prep_s += Seconds(t0);
       });
   const KdTreeTarget& target = *target_ptr;
-  const double load_s = std::max(source_load_s, target_load_s);
-  const double prep_s = std::max(source_prep_s, target_prep_s);
+  const double load_s = std::max(source_chain.load_s, target_chain.load_s);
+  const double prep_s = std::max(source_chain.prep_s, target_chain.prep_s);
   const auto t2 = std::chrono::steady_clock::now();
   IcpResult result;
   Mat6 covariance;
@@ -209,7 +211,7 @@ int RunIcp(int argc, char** argv) {
   LogInfo("icp ({}): {} source / {} target points after downsampling ({} / {} loaded), {} "
           "inliers, RMSE {:.4f} m, {} iterations, {}{}; load {:.3f} s, preprocess {:.3f} s, "
           "registration {:.3f} s{}",
-          method, source.size(), target.size(), source_full_size, target_full_size,
+          method, source.size(), target.size(), source_chain.full_size, target_chain.full_size,
           result.num_inliers, result.rmse_m, result.iterations,
           result.converged ? "converged" : "NOT converged: ", result.converged ? "" : result.message,
           load_s, prep_s, reg_s,

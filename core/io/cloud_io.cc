@@ -809,30 +809,24 @@ PointCloud DecodePcdBody(const std::string& path, const PcdHeader& h, std::strin
                      "expected float seconds since the scan stamp, found an integer type (e.g. Ouster "
                      "nanoseconds); convert the file first");
   }
-  auto value = [&](const PcdFieldRef& f, uint64_t i) { return body.Value(f, i); };
+  // An integer field of point i in [0, max], else an InputError naming the record.
+  const auto integer = [&](const PcdFieldRef& f, const char* name, double max, uint64_t i) {
+    const double v = body.Value(f, i);
+    if (!(v >= 0 && v <= max && v == std::floor(v))) {
+      throw InputError(path, "record " + std::to_string(i),
+                       fmt::format("{} = {}, expected an integer in [0, {}]", name, std::to_string(v), max));
+    }
+    return v;
+  };
   PointCloud cloud;
   cloud.points.resize(h.points);
   for (uint64_t i = 0; i < h.points; ++i) {
     LidarPoint& p = cloud.points[i];
     body.Position(i, &p.x, &p.y, &p.z);
-    if (intensity.present) p.intensity = static_cast<float>(value(intensity, i));
-    if (t.present) p.t = static_cast<float>(value(t, i));
-    if (ring.present) {
-      const double v = value(ring, i);
-      if (!(v >= 0 && v <= 65535 && v == std::floor(v))) {
-        throw InputError(path, "record " + std::to_string(i),
-                         "ring = " + std::to_string(v) + ", expected an integer in [0, 65535]");
-      }
-      p.ring = static_cast<uint16_t>(v);
-    }
-    if (sensor_id.present) {
-      const double v = value(sensor_id, i);
-      if (!(v >= 0 && v <= 255 && v == std::floor(v))) {
-        throw InputError(path, "record " + std::to_string(i),
-                         "sensor_id = " + std::to_string(v) + ", expected an integer in [0, 255]");
-      }
-      p.sensor_id = static_cast<uint8_t>(v);
-    }
+    if (intensity.present) p.intensity = static_cast<float>(body.Value(intensity, i));
+    if (t.present) p.t = static_cast<float>(body.Value(t, i));
+    if (ring.present) p.ring = static_cast<uint16_t>(integer(ring, "ring", 65535, i));
+    if (sensor_id.present) p.sensor_id = static_cast<uint8_t>(integer(sensor_id, "sensor_id", 255, i));
   }
   return cloud;
 }
@@ -879,26 +873,41 @@ PointCloud ReadPcdThroughPcl(const std::string& path) {
       path, ReadBlobWithPcl<pcl::PCDReader>(path, "PCL could not read the file (corrupt data?)"));
 }
 
-// Reads and validates the file; `decode_directly` picks DecodePcdBody for
-// binary bodies, otherwise PCL's reader decodes.
-PointCloud ReadPcdImpl(const std::string& path, bool decode_directly) {
-  SilencePcl();
-  const uint64_t file_size = FileSize(path);
-  const FileBytes bytes(path, file_size);
-  const std::string_view file = bytes.view();
-  const PcdHeader header = ParsePcdHeader(path, file_size, file);
-  if (header.data == "ascii") ValidatePcdAsciiBody(path, header, file);
-  if (header.points == 0) {
-    CheckXyzNames(path, header.names);
-    return PointCloud();
+// A PCD file mapped once, its header parsed and (ascii) its body validated.
+class PcdFile {
+ public:
+  explicit PcdFile(const std::string& path)
+      : path_(path), size_(FileSize(path)), bytes_(path, size_) {
+    SilencePcl();
+    header_ = ParsePcdHeader(path_, size_, bytes_.view());
+    if (header_.data == "ascii") ValidatePcdAsciiBody(path_, header_, bytes_.view());
   }
-  // PCL's compressed reader drops fields named "_" from the stream (and then
-  // lays records out inconsistently); such files keep PCL's behaviour.
-  const bool pcl_padding = header.data == "binary_compressed" &&
-                           std::find(header.names.begin(), header.names.end(), "_") != header.names.end();
-  if (decode_directly && header.data != "ascii" && !pcl_padding) return DecodePcdBody(path, header, file);
-  return ReadPcdThroughPcl(path);
-}
+  const PcdHeader& header() const { return header_; }
+  std::string_view bytes() const { return bytes_.view(); }
+  // Binary bodies lisfm decodes itself. PCL's compressed reader drops fields
+  // named "_" from the stream (and then lays records out inconsistently); such
+  // files, and ascii bodies, keep PCL's behaviour.
+  bool DecodesDirectly() const {
+    return header_.data != "ascii" &&
+           !(header_.data == "binary_compressed" &&
+             std::find(header_.names.begin(), header_.names.end(), "_") != header_.names.end());
+  }
+  // The cloud: DecodePcdBody where it applies and `decode_directly`, else PCL.
+  PointCloud Cloud(bool decode_directly) const {
+    if (header_.points == 0) {
+      CheckXyzNames(path_, header_.names);
+      return PointCloud();
+    }
+    if (decode_directly && DecodesDirectly()) return DecodePcdBody(path_, header_, bytes_.view());
+    return ReadPcdThroughPcl(path_);
+  }
+
+ private:
+  std::string path_;
+  uint64_t size_;  // (FileSize checks existence and emptiness before the mapping)
+  FileBytes bytes_;
+  PcdHeader header_;
+};
 
 // ---------------------------------------------------------------------------
 // Writers.
@@ -944,9 +953,9 @@ std::string Lowercase(std::string s) {
 
 }  // namespace
 
-PointCloud ReadPcd(const std::string& path) { return ReadPcdImpl(path, true); }
+PointCloud ReadPcd(const std::string& path) { return PcdFile(path).Cloud(true); }
 
-PointCloud ReadPcdWithPclReader(const std::string& path) { return ReadPcdImpl(path, false); }
+PointCloud ReadPcdWithPclReader(const std::string& path) { return PcdFile(path).Cloud(false); }
 
 PointCloud ReadPly(const std::string& path) {
   SilencePcl();
@@ -1007,19 +1016,16 @@ void WritePly(const std::string& path, const PointCloud& cloud) {
 
 std::vector<Eigen::Vector3f> ReadPointPositions(const std::string& path, size_t* num_non_finite) {
   const std::string extension = Lowercase(std::filesystem::path(path).extension().string());
+  PointCloud cloud;
   if (extension == ".pcd") {
-    SilencePcl();
-    const uint64_t file_size = FileSize(path);
-    const FileBytes bytes(path, file_size);
-    const std::string_view file = bytes.view();
-    const PcdHeader header = ParsePcdHeader(path, file_size, file);
-    const bool pcl_padding = header.data == "binary_compressed" &&
-                             std::find(header.names.begin(), header.names.end(), "_") != header.names.end();
-    if (header.data != "ascii" && !pcl_padding && header.points > 0) {
-      return DecodePcdPositions(path, header, file, num_non_finite);
+    const PcdFile file(path);
+    if (file.header().points > 0 && file.DecodesDirectly()) {
+      return DecodePcdPositions(path, file.header(), file.bytes(), num_non_finite);
     }
+    cloud = file.Cloud(true);
+  } else {
+    cloud = ReadPointCloud(path);
   }
-  const PointCloud cloud = ReadPointCloud(path);
   std::vector<Eigen::Vector3f> out;
   out.reserve(cloud.size());
   for (const LidarPoint& p : cloud.points) {
