@@ -77,8 +77,8 @@ int RunIcp(int argc, char** argv) {
   std::string source_path, target_path, init_path, output_path, method = "point_to_plane";
   double source_voxel_m = 0.25, target_voxel_m = 0.1;
   NormalOptions normal_options;
-  BayesianIcpOptions bayes;
-  IcpOptions& icp = bayes.icp;
+  IcpOptions icp;
+  BayesianIcpOptions bayes;  // its association (kernel, normals) defaults differ: see below
   int seed = 1;
   options.AddRequiredString("source_path", &source_path, "source cloud (.pcd/.ply)");
   options.AddRequiredString("target_path", &target_path, "target cloud (.pcd/.ply)");
@@ -105,6 +105,12 @@ int RunIcp(int argc, char** argv) {
   options.AddDouble("Icp.convergence_translation", &icp.convergence_translation_m, "step threshold (m)");
   options.AddDouble("Icp.degeneracy_threshold", &icp.degeneracy_threshold,
                     "min/max eigenvalue ratio of the scaled Hessian");
+  options.AddChoice("Bayesian.kernel", &bayes.icp.kernel, {"none", "huber", "cauchy", "geman_mcclure"},
+                    "robust kernel of --method bayesian (replaces Icp.kernel; calibrated with cauchy)");
+  options.AddDouble("Bayesian.kernel_scale", &bayes.icp.kernel_scale_m,
+                    "robust kernel scale of --method bayesian (m; replaces Icp.kernel_scale)");
+  options.AddInt("Bayesian.normal_neighbors", &bayes.normal_neighbors,
+                 "k of the target normals of --method bayesian (replaces Icp.normal_neighbors)");
   options.AddInt("Bayesian.iterations", &bayes.sgld.num_iterations, "SGLD iterations");
   options.AddInt("Bayesian.burn_in", &bayes.sgld.burn_in, "SGLD burn-in iterations");
   options.AddInt("Bayesian.thinning", &bayes.sgld.thinning, "keep every k-th sample");
@@ -126,8 +132,21 @@ int RunIcp(int argc, char** argv) {
                     "Gaussian prior on the pose around --init_path, translation sigma (m; 0 = flat)");
   if (!options.Parse(argc, argv)) return 0;
   bayes.sgld.seed = static_cast<uint64_t>(seed);
+  if (method == "bayesian") {
+    // The calibrated association of Bayesian ICP (BayesianIcpOptions): the Icp.*
+    // options except kernel, kernel scale and normal k, which come from Bayesian.*.
+    const std::string kernel = bayes.icp.kernel;
+    const double kernel_scale = bayes.icp.kernel_scale_m;
+    bayes.icp = icp;
+    bayes.icp.kernel = kernel;
+    bayes.icp.kernel_scale_m = kernel_scale;
+    normal_options.num_neighbors = bayes.normal_neighbors;
+  }
   if (!icp.Check()) throw UsageError("invalid Icp.* options (see lisfm icp -h for ranges)");
-  if (!normal_options.Check()) throw UsageError("Icp.normal_neighbors must be >= 3 and Icp.normal_radius > 0");
+  if (!normal_options.Check()) {
+    throw UsageError("Icp.normal_neighbors (Bayesian.normal_neighbors with --method bayesian) must be "
+                     ">= 3 and Icp.normal_radius > 0");
+  }
   if (method == "bayesian" && (!bayes.sgld.Check() || !bayes.Check())) {
     throw UsageError("invalid Bayesian.* options (burn_in < iterations, 0 < step_size < 2, ...)");
   }

@@ -96,8 +96,15 @@ bool SgldOptions::Check() const {
          metric_decay < 1 && damping_sigma_rotation_rad > 0 && damping_sigma_translation_m > 0;
 }
 
+IcpOptions BayesianDefaultIcpOptions() {
+  IcpOptions options;
+  options.kernel = "cauchy";
+  options.kernel_scale_m = 0.05;
+  return options;
+}
+
 bool BayesianIcpOptions::Check() const {
-  return icp.Check() && sgld.Check() && noise_sigma_m >= 0 && noise_sigma_scale > 0 &&
+  return icp.Check() && normal_neighbors >= 3 && sgld.Check() && noise_sigma_m >= 0 && noise_sigma_scale > 0 &&
          correlation_length_m >= 0 && num_correlation_cells >= 0 && num_correlation_cells != 1 &&
          prior_sigma_rotation_rad >= 0 && prior_sigma_translation_m >= 0 &&
          correspondence_variance.Check();

@@ -40,8 +40,10 @@ TEST(IcpRealData, RegistrationLidarPair) {
   const IcpResult r = RegisterPointToPlane(source, target, SE3(), options);
   EXPECT_TRUE(r.converged) << r.message;
   EXPECT_TRUE(test::PosesNear(r.target_from_source, reference, M_PI / 180.0, 0.05));
-  BayesianIcpOptions bayes;
-  const BayesianIcpResult b = RegisterBayesian(source, target, SE3(), bayes);
+  BayesianIcpOptions bayes;  // its own association: Cauchy kernel, normals of 20 neighbours
+  const KdTreeTarget bayes_target(VoxelDownsamplePoints(target_full, 0.1),
+                                  NormalOptions{bayes.normal_neighbors, NormalOptions().max_radius_m});
+  const BayesianIcpResult b = RegisterBayesian(source, bayes_target, SE3(), bayes);
   EXPECT_TRUE(test::PosesNear(b.posterior.mean, reference, M_PI / 180.0, 0.05));
 }
 

@@ -16,10 +16,13 @@
 // (CellSizeForClusterCount), times noise_sigma_scale; optionally with the
 // plane-fit per-correspondence variance (plane_fit_variance) and the per-pair
 // rotation/translation block tempering (block_tempering). The "new default" rows
-// use the library defaults of this build (printed above the table) except the
-// scale, which is re-fitted here, on office pairs ONLY, before any held-out scene
-// is simulated: one fixed-point step c = sqrt(mean NEES / 6) at scale 1 over the
-// office tuning pairs (seed 11) plus 3x as many further office pairs (seed 31).
+// use the library defaults of this build (printed above the table), association
+// included (BayesianIcpOptions::icp, session 5: Cauchy 0.05 m, and target normals of
+// BayesianIcpOptions::normal_neighbors = 20), except the scale, which is re-fitted
+// here, on office pairs ONLY, before any held-out scene is simulated: one
+// fixed-point step c = sqrt(mean NEES / 5.3) at scale 1 over the office tuning pairs
+// (seed 11) plus 3x as many further office pairs (seed 31). The other rows keep the
+// bench's earlier association (Huber 0.1 m, normals of 10 neighbours).
 // num_correlation_cells is the library default (24; chosen in session 3 from
 // {8, ..., 64} on office; --tune_grid prints that grid again, exploration only).
 // The hall, staircase and corridor pairs are simulated only after that. For
@@ -28,12 +31,16 @@
 // "prior" rows that add a Gaussian prior equal to the distribution the initial
 // guess was drawn from (2 deg / 10 cm per axis). --fresh H S adds hall / staircase
 // pairs of seeds H / S (fresh held-out sets; session 4 used 22/23 for its first
-// try and 32/33 for its second, the lead 42/43 for a third).
+// try and 32/33 for its second, the lead 42/43 for a third; session 5 52/53 for the
+// fourth. A new try needs new seeds).
 // Usage: lisfm_icp_covariance_bench [pairs_per_scene=100] [--fresh H S]
 //        [--cells G] [--scale C (skip the fit)] [--tune_only] [--tune_grid] [--timing]
 //        [--plane | --no_plane] [--block | --no_block] [--plane_weight A]
 //        [--max_tilt T] [--floor F] [--office_seed S] [--iterations N]
-//        [--normal_k K (target normals, default 10)] [--min_planarity P]   (variants, exploration)
+//        [--normal_k K (the new default's target normals)] [--min_planarity P]
+//        [--kernel NAME] [--kernel_scale M] [--max_corr M] (the new default's ICP)
+//        [--range_sigma M] [--source_voxel M] [--target_voxel M] [--voxel_nearest]
+//        [--prestage] [--target_mean N]   (variants, exploration)
 // LISFM_COV_DEBUG=1 prints per-pair diagnostics of every Bayesian run.
 #include <algorithm>
 #include <chrono>
@@ -44,6 +51,7 @@
 #include <map>
 #include <memory>
 #include <string>
+#include <unordered_map>
 #include <vector>
 
 #include <Eigen/Cholesky>
@@ -68,7 +76,8 @@ constexpr double kTargetVoxel = 0.1;
 
 struct PreparedPair {
   PointSet source;
-  std::unique_ptr<KdTreeTarget> target;
+  std::unique_ptr<KdTreeTarget> target;        // normals of 10 neighbours (the ICP's default)
+  std::unique_ptr<KdTreeTarget> target_bayes;  // normals of BayesianIcpOptions::normal_neighbors
   SE3 truth, initial;
 };
 
@@ -77,7 +86,53 @@ struct MethodRun {
   double total_ms = 0;
 };
 
-int g_normal_k = 10;  // --normal_k (exploration)
+int g_normal_k = -1;  // --normal_k: k of the new default's target normals (exploration; < 0: library)
+bool g_voxel_nearest = false;  // --voxel_nearest (exploration)
+double g_range_sigma = -1;      // --range_sigma (exploration; < 0: simulator default)
+double g_source_voxel = -1;     // --source_voxel (exploration; < 0: kSourceVoxel)
+double g_target_voxel = -1;     // --target_voxel (exploration; < 0: kTargetVoxel)
+bool g_prestage = false;        // --prestage: start every method at a Huber 0.1 m ICP result (exploration)
+
+// One raw point per voxel: the point nearest to the voxel's centroid (on a surface,
+// unlike the centroid of a voxel that straddles an edge).
+PointSet VoxelNearestPoints(const PointSet& points, double voxel) {
+  struct Acc {
+    Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+    int n = 0;
+    int best = -1;
+    double best_d = 1e300;
+    int order = 0;
+  };
+  std::unordered_map<int64_t, Acc> map;
+  auto key = [&](const Eigen::Vector3f& p) {
+    const int64_t x = static_cast<int64_t>(std::floor(p.x() / voxel)) + (1 << 20);
+    const int64_t y = static_cast<int64_t>(std::floor(p.y() / voxel)) + (1 << 20);
+    const int64_t z = static_cast<int64_t>(std::floor(p.z() / voxel)) + (1 << 20);
+    return (x << 42) | (y << 21) | z;
+  };
+  int order = 0;
+  for (const auto& p : points) {
+    auto [it, inserted] = map.try_emplace(key(p));
+    if (inserted) it->second.order = order++;
+    it->second.sum += p.cast<double>();
+    ++it->second.n;
+  }
+  for (size_t i = 0; i < points.size(); ++i) {
+    Acc& a = map[key(points[i])];
+    const double d = (points[i].cast<double>() - a.sum / a.n).squaredNorm();
+    if (d < a.best_d) {
+      a.best_d = d;
+      a.best = static_cast<int>(i);
+    }
+  }
+  PointSet out(map.size());
+  for (const auto& [k, a] : map) out[a.order] = points[a.best];
+  return out;
+}
+
+PointSet Downsample(const PointSet& points, double voxel) {
+  return g_voxel_nearest ? VoxelNearestPoints(points, voxel) : VoxelDownsamplePoints(points, voxel);
+}
 
 std::vector<PreparedPair> Prepare(const std::string& type, int count, uint32_t seed,
                                   double* sim_ms, double source_voxel = kSourceVoxel) {
@@ -94,18 +149,31 @@ std::vector<PreparedPair> Prepare(const std::string& type, int count, uint32_t s
   const bool corridor = type == "corridor";
   const std::unique_ptr<sim::Scene> scene = corridor ? test::CorridorScene(300, 3, 3)
                                                      : sim::Scene::Generate(scene_options);
+  test::SimScanPairOptions sim_options;
+  if (g_range_sigma >= 0) sim_options.range_sigma_m = g_range_sigma;
   const std::vector<test::SimScanPair> pairs =
-      corridor ? test::SimulateCorridorPairs(*scene, count, seed, test::SimScanPairOptions())
-               : test::SimulateScanPairs(*scene, count, seed, test::SimScanPairOptions());
+      corridor ? test::SimulateCorridorPairs(*scene, count, seed, sim_options)
+               : test::SimulateScanPairs(*scene, count, seed, sim_options);
   std::vector<PreparedPair> out;
+  if (g_source_voxel >= 0) source_voxel = g_source_voxel;
+  const double target_voxel = g_target_voxel >= 0 ? g_target_voxel : kTargetVoxel;
   for (const test::SimScanPair& p : pairs) {
     PreparedPair q;
-    q.source = VoxelDownsamplePoints(FinitePointsOf(p.source), source_voxel);
-    q.target = std::make_unique<KdTreeTarget>(
-        VoxelDownsamplePoints(FinitePointsOf(p.target), kTargetVoxel),
-        NormalOptions{g_normal_k, 10 * kTargetVoxel});
+    q.source = Downsample(FinitePointsOf(p.source), source_voxel);
+    PointSet target_points = Downsample(FinitePointsOf(p.target), target_voxel);
+    q.target = std::make_unique<KdTreeTarget>(target_points, NormalOptions{10, 10 * kTargetVoxel});
+    q.target_bayes = std::make_unique<KdTreeTarget>(
+        std::move(target_points),
+        NormalOptions{g_normal_k > 0 ? g_normal_k : BayesianIcpOptions().normal_neighbors,
+                      10 * kTargetVoxel});
     q.truth = p.truth;
     q.initial = p.initial;
+    if (g_prestage) {
+      IcpOptions o;
+      o.max_correspondence_distance_m = 1.0;
+      o.kernel_scale_m = 0.1;
+      q.initial = RegisterPointToPlane(q.source, *q.target, p.initial, o).target_from_source;
+    }
     out.push_back(std::move(q));
   }
   *sim_ms = Ms(t0);
@@ -113,12 +181,27 @@ std::vector<PreparedPair> Prepare(const std::string& type, int count, uint32_t s
 }
 
 double g_min_planarity = 0.0;  // --min_planarity (exploration)
+std::string g_kernel;          // --kernel (exploration; empty: the bench default)
+double g_kernel_scale = -1;    // --kernel_scale (exploration)
+double g_max_corr = -1;        // --max_corr (exploration)
 
+// The ICP of the closed forms and of the previous noise models (Huber 0.1 m, as
+// in the real-data benchmark).
 IcpOptions BenchIcpOptions() {
   IcpOptions o;
   o.max_correspondence_distance_m = 1.0;
   o.kernel_scale_m = 0.1;
+  return o;
+}
+
+// The association of the new default: BayesianIcpOptions' own (session 5: Cauchy
+// 0.05 m), with the exploration overrides.
+IcpOptions NewDefaultIcpOptions() {
+  IcpOptions o = BayesianIcpOptions().icp;
   o.min_planarity = g_min_planarity;
+  if (!g_kernel.empty()) o.kernel = g_kernel;
+  if (g_kernel_scale > 0) o.kernel_scale_m = g_kernel_scale;
+  if (g_max_corr > 0) o.max_correspondence_distance_m = g_max_corr;
   return o;
 }
 
@@ -159,12 +242,13 @@ struct BayesConfig {
   bool plane = false;        // plane_fit_variance (heteroscedastic v_i)
   bool block = false;        // block_tempering
   int iterations = 0;        // > 0: sgld.num_iterations (burn-in 10 %)
+  bool new_default = false;  // the library's association (kernel, target normals) instead of the bench's Huber / k = 10
   CorrespondenceVarianceOptions variance;  // its constants
 };
 
 BayesianIcpOptions ToOptions(const BayesConfig& config) {
   BayesianIcpOptions b;
-  b.icp = BenchIcpOptions();
+  b.icp = config.new_default ? NewDefaultIcpOptions() : BenchIcpOptions();
   b.noise_sigma_scale = config.scale;
   b.correlation_length_m = config.cell;
   b.num_correlation_cells = config.cells;
@@ -189,12 +273,13 @@ MethodRun RunBayesian(const std::vector<PreparedPair>& pairs, const BayesConfig&
       b.prior_sigma_translation_m = sim_options.init_sigma_translation_m;
     }
     b.sgld.seed = 1000 + k;
+    const KdTreeTarget& target = config.new_default ? *pairs[k].target_bayes : *pairs[k].target;
     const auto t0 = Clock::now();
     if (config.old_model_a > 0) {
-      const IcpResult icp = RegisterPointToPlane(pairs[k].source, *pairs[k].target, pairs[k].initial, b.icp);
+      const IcpResult icp = RegisterPointToPlane(pairs[k].source, target, pairs[k].initial, b.icp);
       b.noise_sigma_m = std::max(1e-6, config.old_model_a * std::sqrt(icp.residual_variance_m2));
     }
-    const BayesianIcpResult r = RegisterBayesian(pairs[k].source, *pairs[k].target, pairs[k].initial, b);
+    const BayesianIcpResult r = RegisterBayesian(pairs[k].source, target, pairs[k].initial, b);
     run.total_ms += Ms(t0);
     if (inflation != nullptr) inflation->push_back(r.variance_inflation);
     run.samples.push_back({r.posterior.mean, r.posterior.covariance, pairs[k].truth});
@@ -224,14 +309,16 @@ MethodRun RunBayesian(const std::vector<PreparedPair>& pairs, const BayesConfig&
 MethodRun RunSandwich(const std::vector<PreparedPair>& pairs, const BayesConfig& config, MethodRun* jack = nullptr,
                       std::vector<double>* clusters = nullptr) {
   MethodRun run;
+  const IcpOptions icp_options = ToOptions(config).icp;
   for (const PreparedPair& p : pairs) {
-    const IcpResult r = RegisterPointToPlane(p.source, *p.target, p.initial, BenchIcpOptions());
+    const KdTreeTarget& target = config.new_default ? *p.target_bayes : *p.target;
+    const IcpResult r = RegisterPointToPlane(p.source, target, p.initial, icp_options);
     const auto t0 = Clock::now();
     const double cell = config.cells > 0 ? CellSizeForClusterCount(p.source, config.cells) : config.cell;
     std::unique_ptr<CorrespondenceVarianceModel> model;
-    if (config.plane) model = std::make_unique<CorrespondenceVarianceModel>(*p.target, config.variance);
-    const ClusterSandwich s = ComputeClusterSandwich(p.source, *p.target, r.target_from_source,
-                                                     BenchIcpOptions(), cell, {}, model.get());
+    if (config.plane) model = std::make_unique<CorrespondenceVarianceModel>(target, config.variance);
+    const ClusterSandwich s = ComputeClusterSandwich(p.source, target, r.target_from_source,
+                                                     icp_options, cell, {}, model.get());
     run.total_ms += Ms(t0);
     run.samples.push_back({r.target_from_source, s.covariance, p.truth});
     if (jack != nullptr) jack->samples.push_back({r.target_from_source, s.jackknife_covariance, p.truth});
@@ -302,28 +389,30 @@ void Timing(int count) {
   const std::vector<PreparedPair> pairs = Prepare("office", count, 21, &sim_ms, 0.05);
   double icp_ms = 0, sandwich_ms = 0, total_ms = 0, points = 0, old_ms = 0;
   for (size_t k = 0; k < pairs.size(); ++k) {
-    BayesianIcpOptions b;  // library defaults
-    b.icp = BenchIcpOptions();
+    BayesianIcpOptions b;  // library defaults (association included)
     b.sgld.seed = 1000 + k;
+    const KdTreeTarget& target = *pairs[k].target_bayes;
     auto t0 = Clock::now();
-    const IcpResult icp = RegisterPointToPlane(pairs[k].source, *pairs[k].target, pairs[k].initial, b.icp);
+    const IcpResult icp = RegisterPointToPlane(pairs[k].source, target, pairs[k].initial, b.icp);
     icp_ms += Ms(t0);
     t0 = Clock::now();
     {
       std::unique_ptr<CorrespondenceVarianceModel> model;
       if (b.plane_fit_variance) {
-        model = std::make_unique<CorrespondenceVarianceModel>(*pairs[k].target, b.correspondence_variance);
+        model = std::make_unique<CorrespondenceVarianceModel>(target, b.correspondence_variance);
       }
-      ComputeClusterSandwich(pairs[k].source, *pairs[k].target, icp.target_from_source, b.icp,
+      ComputeClusterSandwich(pairs[k].source, target, icp.target_from_source, b.icp,
                              CellSizeForClusterCount(pairs[k].source, b.num_correlation_cells), {},
                              model.get());
     }
     sandwich_ms += Ms(t0);
     t0 = Clock::now();
-    const BayesianIcpResult r = RegisterBayesian(pairs[k].source, *pairs[k].target, pairs[k].initial, b);
+    const BayesianIcpResult r = RegisterBayesian(pairs[k].source, target, pairs[k].initial, b);
     total_ms += Ms(t0);
     THROW_CHECK_GT(r.posterior.num_term_evaluations, 0u);
-    BayesianIcpOptions s3 = b;  // session-3 default: no plane-fit variance, 24 cells, 1.015
+    BayesianIcpOptions s3 = b;  // session-3 default: Huber 0.1 m, k = 10, 24 cells, 1.015
+    s3.icp = BenchIcpOptions();
+    s3.block_tempering = false;
     s3.plane_fit_variance = false;
     s3.num_correlation_cells = 24;
     s3.noise_sigma_scale = 1.015;
@@ -342,12 +431,15 @@ void Timing(int count) {
 int Main(int argc, char** argv) {
   int count = 100;
   double fixed_scale = 0;
+  // Mean NEES the scale is fitted to on office (session 5: 5.3, see the fit below).
+  double target_mean = 5.3;
   int fixed_cells = -1;
   bool tune_only = false;
   BayesConfig plane_config;  // the new method: library defaults unless overridden
   plane_config.plane = BayesianIcpOptions().plane_fit_variance;
   plane_config.block = BayesianIcpOptions().block_tempering;
   plane_config.variance = BayesianIcpOptions().correspondence_variance;
+  plane_config.new_default = true;
   bool tune_grid = false;
   uint32_t fresh_hall = 0, fresh_staircase = 0;
   uint32_t office_seed = 11;  // tuning pairs (other seeds: more office pairs for tuning studies)
@@ -379,6 +471,24 @@ int Main(int argc, char** argv) {
       plane_config.block = true;
     } else if (std::strcmp(argv[i], "--no_block") == 0) {
       plane_config.block = false;
+    } else if (std::strcmp(argv[i], "--target_mean") == 0 && i + 1 < argc) {
+      target_mean = std::atof(argv[++i]);
+    } else if (std::strcmp(argv[i], "--prestage") == 0) {
+      g_prestage = true;
+    } else if (std::strcmp(argv[i], "--kernel") == 0 && i + 1 < argc) {
+      g_kernel = argv[++i];
+    } else if (std::strcmp(argv[i], "--kernel_scale") == 0 && i + 1 < argc) {
+      g_kernel_scale = std::atof(argv[++i]);
+    } else if (std::strcmp(argv[i], "--max_corr") == 0 && i + 1 < argc) {
+      g_max_corr = std::atof(argv[++i]);
+    } else if (std::strcmp(argv[i], "--range_sigma") == 0 && i + 1 < argc) {
+      g_range_sigma = std::atof(argv[++i]);
+    } else if (std::strcmp(argv[i], "--source_voxel") == 0 && i + 1 < argc) {
+      g_source_voxel = std::atof(argv[++i]);
+    } else if (std::strcmp(argv[i], "--target_voxel") == 0 && i + 1 < argc) {
+      g_target_voxel = std::atof(argv[++i]);
+    } else if (std::strcmp(argv[i], "--voxel_nearest") == 0) {
+      g_voxel_nearest = true;
     } else if (std::strcmp(argv[i], "--normal_k") == 0 && i + 1 < argc) {
       g_normal_k = std::atoi(argv[++i]);
     } else if (std::strcmp(argv[i], "--min_planarity") == 0 && i + 1 < argc) {
@@ -447,8 +557,14 @@ int Main(int argc, char** argv) {
         er.push_back(e.head<3>().norm() * 180.0 / M_PI);
         et.push_back(e.tail<3>().norm() * 1e3);
       }
-      std::printf("  (normal k %d, min_planarity %.2f: posterior-mean median error %.3f deg / %.1f mm)\n",
-                  g_normal_k, g_min_planarity, Median(er), Median(et));
+      std::vector<double> sr = er, st2 = et;
+      std::sort(sr.begin(), sr.end());
+      std::sort(st2.begin(), st2.end());
+      std::printf("  (normal k %d, min_planarity %.2f: posterior-mean median error %.3f deg / %.1f mm, "
+                  "p90 %.3f deg / %.1f mm, max %.3f deg / %.1f mm)\n",
+                  g_normal_k > 0 ? g_normal_k : BayesianIcpOptions().normal_neighbors,
+                  g_min_planarity, Median(er), Median(et), sr[sr.size() * 9 / 10],
+                  st2[st2.size() * 9 / 10], sr.back(), st2.back());
     }
     std::printf("tuning (office): plane variance %s, block tempering %s (weight %.2f, max tilt %.3f rad^2, floor %.1e m^2), "
                 "cells %d, scale %.3f -> Bayesian coverage %.1f %%, mean NEES %.2f, median %.2f, "
@@ -489,10 +605,31 @@ int Main(int argc, char** argv) {
     config.cells = cells;
     const MethodRun run = Concat(RunBayesian(sets[0].pairs, config), RunBayesian(extra, config));
     const CalibrationStats st = EvaluateCovarianceCalibration(run.samples);
-    scale = std::sqrt(st.mean_nees / 6.0);
+    // Mean NEES target 5.3 rather than 6 (session 5): the office NEES are spread
+    // wider than chi^2_6 (at mean 6 the median is ~4.4 and the coverage ~91 %), so
+    // no scale gives both 6 and 95 %; office met both target bands (mean 5-7,
+    // coverage 92-98 %) for mean NEES ~5.0-5.8, whose middle is 5.3. The NEES of a
+    // pair scales as 1 / scale^2 (the posterior covariance is proportional to sigma^2).
+    scale = std::sqrt(st.mean_nees / target_mean);
     std::printf("tuning (office seeds 11 + 31, %zu pairs): num_correlation_cells %d: mean NEES "
-                "%.2f at scale 1 (coverage at mean NEES 6: %.1f %%) -> noise_sigma_scale %.3f\n",
-                run.samples.size(), cells, st.mean_nees, 100 * CoverageAtMeanSix(run), scale);
+                "%.2f at scale 1 (coverage at mean NEES 6: %.1f %%) -> noise_sigma_scale %.3f "
+                "(mean NEES %.2f)\n",
+                run.samples.size(), cells, st.mean_nees, 100 * CoverageAtMeanSix(run), scale,
+                target_mean);
+    for (const double s : {0.95, 1.0, 1.05, 1.1, 1.15, 1.2}) {
+      const double f = scale * s;
+      size_t inside = 0;
+      double mean = 0;
+      for (const CovarianceSample& smp : run.samples) {
+        const Vec6 xi = (smp.estimate.Inverse() * smp.truth).Log();
+        const double nees = xi.dot(smp.covariance.llt().solve(xi)) / (f * f);
+        mean += nees;
+        inside += nees < 12.5916 ? 1 : 0;  // chi^2_6 95 % quantile
+      }
+      std::printf("  office at scale %.3f: mean NEES %.2f, coverage %.1f %%\n", f,
+                  mean / static_cast<double>(run.samples.size()),
+                  100.0 * static_cast<double>(inside) / static_cast<double>(run.samples.size()));
+    }
   }
   std::printf("Bayesian ICP new default: plane-fit variance %s, block tempering %s, per-pair "
               "cluster sandwich with num_correlation_cells %d, noise_sigma_scale %.3f\n\n",
@@ -515,13 +652,17 @@ int Main(int argc, char** argv) {
   BayesConfig session3;  // previous default (session 3): 24 cells, 1.015, no plane-fit variance
   session3.cells = 24;
   session3.scale = 1.015;
+  BayesConfig session4;  // previous default (session 4): Huber 0.1 m, k = 10, block tempering, 1.049
+  session4.cells = 24;
+  session4.scale = 1.049;
+  session4.block = true;
   BayesConfig old_a;
   old_a.old_model_a = 3.15;
   BayesConfig iid;  // cells of one point: heteroscedastic i.i.d. residuals, scale 1
 
   std::printf("| pairs | method | n | coverage 95 %% | mean NEES | median NEES | ms per pair |\n");
   std::printf("|---|---|---|---|---|---|---|\n");
-  const int kMethods = 8;
+  const int kMethods = 9;
   const char* names[kMethods] = {
       "closed form sigma^2 H^-1 (on top of ICP)",
       "Censi sandwich (on top of ICP)",
@@ -529,9 +670,10 @@ int Main(int argc, char** argv) {
       "Bayesian ICP, old model A (3.15 x residual sigma)",
       "Bayesian ICP, i.i.d. sandwich sigma (untuned)",
       "Bayesian ICP, session-3 default (cluster sandwich sigma, 24 cells, 1.015)",
+      "Bayesian ICP, session-4 default (+ block tempering, 1.049; Huber 0.1 m, k = 10)",
       "Bayesian ICP, new default (configuration line above the table)",
       "Bayesian ICP, new default + prior = init distribution"};
-  const int kNew = 6, kSession3 = 5;
+  const int kNew = 7, kSession3 = 5;
   std::vector<MethodRun> held(kMethods), fresh(kMethods);
   for (size_t i = 0; i < sets.size(); ++i) {
     const std::string& name = sets[i].label;
@@ -546,6 +688,7 @@ int Main(int argc, char** argv) {
                                    RunBayesian(sets[i].pairs, old_a),
                                    RunBayesian(sets[i].pairs, iid),
                                    RunBayesian(sets[i].pairs, session3),
+                                   RunBayesian(sets[i].pairs, session4),
                                    RunBayesian(sets[i].pairs, tuned, &inflation),
                                    RunBayesian(sets[i].pairs, tuned_prior)};
     icp_only.total_ms /= static_cast<double>(sets[i].pairs.size());
@@ -554,11 +697,19 @@ int Main(int argc, char** argv) {
     double block_rot = 0, block_trans = 0, s3_rot = 0, s3_trans = 0;
     BlockNees(runs[kNew], &block_rot, &block_trans);
     BlockNees(runs[kSession3], &s3_rot, &s3_trans);
-    std::printf("| %s | (ICP median error %.3f deg / %.1f mm; %zu of %zu flagged degenerate; "
-                "new default: median variance inflation %.1f, rotation / translation block "
+    std::vector<double> new_rot, new_trans;
+    for (const CovarianceSample& smp : runs[kNew].samples) {
+      const Vec6 e = (smp.estimate.Inverse() * smp.truth).Log();
+      new_rot.push_back(e.head<3>().norm() * 180.0 / M_PI);
+      new_trans.push_back(e.tail<3>().norm() * 1e3);
+    }
+    std::printf("| %s | (ICP (Huber 0.1 m, k = 10) median error %.3f deg / %.1f mm, %zu of %zu "
+                "flagged degenerate; new default: posterior-mean median error %.3f deg / %.1f mm, "
+                "median variance inflation %.1f, rotation / translation block "
                 "mean NEES %.2f / %.2f (session-3 default %.2f / %.2f), ideal 3) | | | | | |\n",
                 name.c_str(), rot_med, 1e3 * trans_med, degenerate, sets[i].pairs.size(),
-                Median(inflation), block_rot, block_trans, s3_rot, s3_trans);
+                Median(new_rot), Median(new_trans), Median(inflation), block_rot, block_trans,
+                s3_rot, s3_trans);
     std::fflush(stdout);
     for (int m = 0; m < kMethods; ++m) {
       if (i == 1 || i == 2) held[m] = Concat(held[m], runs[m]);
