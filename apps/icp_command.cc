@@ -140,10 +140,11 @@ int RunIcp(int argc, char** argv) {
     bayes.icp = icp;
     bayes.icp.kernel = kernel;
     bayes.icp.kernel_scale_m = kernel_scale;
-    normal_options.num_neighbors = bayes.normal_neighbors;
   }
+  NormalOptions target_normals = normal_options;
+  if (method == "bayesian") target_normals.num_neighbors = bayes.normal_neighbors;
   if (!icp.Check()) throw UsageError("invalid Icp.* options (see lisfm icp -h for ranges)");
-  if (!normal_options.Check()) {
+  if (!target_normals.Check()) {
     throw UsageError("Icp.normal_neighbors (Bayesian.normal_neighbors with --method bayesian) must be "
                      ">= 3 and Icp.normal_radius > 0");
   }
@@ -177,7 +178,7 @@ int RunIcp(int argc, char** argv) {
       [&] {
         PointSet points = target_chain.Run(target_path, target_voxel_m);
         const auto t0 = std::chrono::steady_clock::now();
-        target_ptr = std::make_unique<KdTreeTarget>(std::move(points), normal_options);
+        target_ptr = std::make_unique<KdTreeTarget>(std::move(points), target_normals);
         target_chain.prep_s += Seconds(t0);
       });
   const KdTreeTarget& target = *target_ptr;

@@ -110,8 +110,25 @@ TEST(IcpCommand, RecoversAKnownTransformAndWritesOutputs) {
     EXPECT_LT((cov - cov.transpose()).norm(), 1e-6 * cov.norm()) << method;
     for (int i = 0; i < 6; ++i) EXPECT_GT(cov(i, i), 0.0) << method << " diagonal " << i;
     EXPECT_NE(ReadAll(out_dir + "/result.yaml").find("converged: true"), std::string::npos);
-    EXPECT_FALSE(ReadAll(out_dir + "/config.yaml").empty());
+    const std::string config = ReadAll(out_dir + "/config.yaml");
+    EXPECT_NE(config.find("Bayesian.kernel: cauchy"), std::string::npos) << config;
+    EXPECT_NE(config.find("Icp.kernel: huber"), std::string::npos) << config;
   }
+}
+
+// --method bayesian takes its normal k from Bayesian.normal_neighbors: a bad value
+// there is a usage error (exit 2), while the same value for point_to_plane is unused.
+TEST(IcpCommand, BayesianNormalNeighborsAreChecked) {
+  TempDir dir;
+  WriteAsciiPcd(dir.File("target.pcd"), Room());
+  const std::string base = LisfmBinary() + " icp --source_path " + dir.File("target.pcd") +
+                           " --target_path " + dir.File("target.pcd") +
+                           " --Icp.source_voxel_size 0 --Icp.target_voxel_size 0" +
+                           " --Bayesian.normal_neighbors 2 --method ";
+  std::string output;
+  EXPECT_EQ(RunCommand(base + "bayesian", &output), 2) << output;
+  EXPECT_NE(output.find("Bayesian.normal_neighbors"), std::string::npos) << output;
+  EXPECT_EQ(RunCommand(base + "point_to_plane", &output), 0) << output;
 }
 
 // A single plane is degenerate: exit 0 (a result, not an error) but a WARNING
