@@ -306,8 +306,7 @@ PointSet VoxelDownsamplePoints(const PointSet& points, double voxel_size_m) {
   // bit-identical output; ~3x faster than std::unordered_map on 100k points.
   // The table grows with the number of voxels (doubling and re-inserting the
   // entries; each keeps its rank of first appearance, so the order is
-  // unaffected): a downsampled scan has a fraction of its points' voxels, and a
-  // table sized for the points would not stay in cache.
+  // unaffected) from a start sized for half the points (below).
   constexpr int64_t kHalfRange = int64_t{1} << 20;
   constexpr uint64_t kEmpty = ~uint64_t{0};
   // One table entry per voxel holds the key, the running sums and the voxel's
@@ -319,8 +318,12 @@ PointSet VoxelDownsamplePoints(const PointSet& points, double voxel_size_m) {
     uint32_t count;
     uint32_t order;  // rank of first appearance = output position
   };
+  // Initial capacity: a power of two >= half the points, enough for a BALM scan
+  // at 0.1 m (90k points, 25k voxels) without a growth step, whose re-insertion
+  // cost ~15 % of that grid; at 0.25 m (10k voxels) the larger table costs
+  // nothing measurable (its accesses are prefetched, below).
   size_t capacity = 1024;
-  while (capacity < points.size() / 4) capacity *= 2;
+  while (capacity < points.size() / 2) capacity *= 2;
   int shift = 64;
   for (size_t c = capacity; c > 1; c >>= 1) --shift;
   std::vector<Entry> table(capacity);
@@ -339,16 +342,36 @@ PointSet VoxelDownsamplePoints(const PointSet& points, double voxel_size_m) {
       table[h] = e;
     }
   };
-  for (const auto& p : points) {
-    if (!p.allFinite()) continue;
+  // The keys first (a sequential pass; kEmpty marks non-finite points), so that
+  // the table slot of a point kPrefetch ahead can be prefetched: the table does
+  // not fit the L2 cache and the accesses are random, so the loop below is bound
+  // by memory latency, which the prefetches overlap (hints only: the output is
+  // unaffected).
+  std::vector<uint64_t> keys(points.size());
+  for (size_t i = 0; i < points.size(); ++i) {
+    const Eigen::Vector3f& p = points[i];
+    if (!p.allFinite()) {
+      keys[i] = kEmpty;
+      continue;
+    }
     const double fx = std::floor(p.x() * inv), fy = std::floor(p.y() * inv),
                  fz = std::floor(p.z() * inv);
     if (!(std::abs(fx) < kHalfRange && std::abs(fy) < kHalfRange && std::abs(fz) < kHalfRange)) {
       return VoxelDownsampleHashMap(points, inv);
     }
-    const uint64_t key = (static_cast<uint64_t>(static_cast<int64_t>(fx) + kHalfRange) << 42) |
-                         (static_cast<uint64_t>(static_cast<int64_t>(fy) + kHalfRange) << 21) |
-                         static_cast<uint64_t>(static_cast<int64_t>(fz) + kHalfRange);
+    keys[i] = (static_cast<uint64_t>(static_cast<int64_t>(fx) + kHalfRange) << 42) |
+              (static_cast<uint64_t>(static_cast<int64_t>(fy) + kHalfRange) << 21) |
+              static_cast<uint64_t>(static_cast<int64_t>(fz) + kHalfRange);
+  }
+  constexpr size_t kPrefetch = 16;
+  for (size_t i = 0; i < points.size(); ++i) {
+    if (i + kPrefetch < points.size() && keys[i + kPrefetch] != kEmpty) {
+      __builtin_prefetch(
+          &table[static_cast<size_t>((keys[i + kPrefetch] * 0x9E3779B97F4A7C15ULL) >> shift)], 1);
+    }
+    const uint64_t key = keys[i];
+    if (key == kEmpty) continue;
+    const Eigen::Vector3f& p = points[i];
     size_t h = static_cast<size_t>((key * 0x9E3779B97F4A7C15ULL) >> shift);
     while (table[h].key != kEmpty && table[h].key != key) h = (h + 1) & (capacity - 1);
     if (table[h].key == kEmpty) {
