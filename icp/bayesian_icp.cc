@@ -66,8 +66,7 @@ class PointToPlaneModel : public SgldModel {
       const Eigen::Vector3f n_t = ctx.rotation_f * n;
       Eigen::Vector3f q, nq;
       uint32_t hint = hints_.empty() ? IcpTarget::kNoHint : hints_[i];
-      if (!target_.MatchWithHint(p_t, n_t, ctx.max_distance_m, ctx.min_cos_normal_angle,
-                                 ctx.min_planarity, &q, &nq, &hint)) {
+      if (!target_.MatchWithHint(p_t, n_t, ctx.criteria, &q, &nq, &hint)) {
         return false;
       }
       internal::LinearizeMatch(ctx, source_[i], q, nq, &term);

@@ -309,15 +309,14 @@ size_t KdTreeTarget::NumNormalsEstimated() const {
 
 bool KdTreeTarget::AcceptMatch(uint32_t index,
                                const Eigen::Vector3f& normal,
-                               float min_cos_normal_angle,
-                               float min_planarity,
+                               const MatchCriteria& criteria,
                                Eigen::Vector3f* target_point,
                                Eigen::Vector3f* target_normal) const {
   Eigen::Vector3f n;
   float planarity = 0.f;
   NormalAt(index, &n, &planarity);
-  if (planarity <= 0.f || planarity < min_planarity) return false;
-  if (!normal.isZero() && std::abs(n.dot(normal)) < min_cos_normal_angle) return false;
+  if (planarity <= 0.f || planarity < criteria.min_planarity) return false;
+  if (!normal.isZero() && std::abs(n.dot(normal)) < criteria.min_cos_normal_angle) return false;
   *target_point = tree_.points()[index];
   *target_normal = n;
   return true;
@@ -325,27 +324,22 @@ bool KdTreeTarget::AcceptMatch(uint32_t index,
 
 bool KdTreeTarget::Match(const Eigen::Vector3f& point,
                          const Eigen::Vector3f& normal,
-                         float max_distance_m,
-                         float min_cos_normal_angle,
-                         float min_planarity,
+                         const MatchCriteria& criteria,
                          Eigen::Vector3f* target_point,
                          Eigen::Vector3f* target_normal) const {
   uint32_t hint = kNoHint;
-  return MatchWithHint(point, normal, max_distance_m, min_cos_normal_angle, min_planarity,
-                       target_point, target_normal, &hint);
+  return MatchWithHint(point, normal, criteria, target_point, target_normal, &hint);
 }
 
 bool KdTreeTarget::MatchWithHint(const Eigen::Vector3f& point,
                                  const Eigen::Vector3f& normal,
-                                 float max_distance_m,
-                                 float min_cos_normal_angle,
-                                 float min_planarity,
+                                 const MatchCriteria& criteria,
                                  Eigen::Vector3f* target_point,
                                  Eigen::Vector3f* target_normal,
                                  uint32_t* hint) const {
   // The nearest point is at most as far as the previous match: a tighter bound
   // prunes most of the tree walk once the estimate settles (same result).
-  float bound = max_distance_m * max_distance_m;
+  float bound = criteria.max_distance_m * criteria.max_distance_m;
   // (Relaxed by 1e-4 relative so that rounding differences between this distance
   // and the tree's own cannot exclude the previous match itself.)
   if (*hint < tree_.size()) {
@@ -355,19 +349,16 @@ bool KdTreeTarget::MatchWithHint(const Eigen::Vector3f& point,
   float sq_dist = 0;
   if (!tree_.NearestWithin(point, bound, &index, &sq_dist)) return false;
   *hint = index;
-  return AcceptMatch(index, normal, min_cos_normal_angle, min_planarity, target_point,
-                     target_normal);
+  return AcceptMatch(index, normal, criteria, target_point, target_normal);
 }
 
 bool KdTreeTarget::MatchTracked(const Eigen::Vector3f& point,
                                 const Eigen::Vector3f& normal,
-                                float max_distance_m,
-                                float min_cos_normal_angle,
-                                float min_planarity,
+                                const MatchCriteria& criteria,
                                 Eigen::Vector3f* target_point,
                                 Eigen::Vector3f* target_normal,
                                 MatchState* state) const {
-  const float max_sq = max_distance_m * max_distance_m;
+  const float max_sq = criteria.max_distance_m * criteria.max_distance_m;
   uint32_t index = 0;
   if (state->index < tree_.size() && state->margin_m > 0 &&
       (point - state->anchor).squaredNorm() < state->margin_m * state->margin_m) {
@@ -396,8 +387,7 @@ bool KdTreeTarget::MatchTracked(const Eigen::Vector3f& point,
     state->anchor = point;
     state->margin_m = 0.49f * (d_second - d_first) - 1e-6f;
   }
-  return AcceptMatch(index, normal, min_cos_normal_angle, min_planarity, target_point,
-                     target_normal);
+  return AcceptMatch(index, normal, criteria, target_point, target_normal);
 }
 
 ProjectiveTarget::ProjectiveTarget(PointSet vertex_map, const PinholeIntrinsics& intrinsics)
@@ -425,9 +415,7 @@ ProjectiveTarget::ProjectiveTarget(PointSet vertex_map, const PinholeIntrinsics&
 
 bool ProjectiveTarget::Match(const Eigen::Vector3f& point,
                              const Eigen::Vector3f& normal,
-                             float max_distance_m,
-                             float min_cos_normal_angle,
-                             float /*min_planarity*/,
+                             const MatchCriteria& criteria,
                              Eigen::Vector3f* target_point,
                              Eigen::Vector3f* target_normal) const {
   if (!(point.z() > 0)) return false;
@@ -439,9 +427,9 @@ bool ProjectiveTarget::Match(const Eigen::Vector3f& point,
   const size_t i = static_cast<size_t>(vi) * intrinsics_.width + static_cast<size_t>(ui);
   if (normals_.planarity[i] <= 0.f) return false;  // no depth or no normal
   const Eigen::Vector3f& q = vertex_map_[i];
-  if ((q - point).squaredNorm() > max_distance_m * max_distance_m) return false;
+  if ((q - point).squaredNorm() > criteria.max_distance_m * criteria.max_distance_m) return false;
   const Eigen::Vector3f& n = normals_.normals[i];
-  if (!normal.isZero() && std::abs(n.dot(normal)) < min_cos_normal_angle) return false;
+  if (!normal.isZero() && std::abs(n.dot(normal)) < criteria.min_cos_normal_angle) return false;
   *target_point = q;
   *target_normal = n;
   return true;
@@ -455,9 +443,9 @@ LinearizationContext::LinearizationContext(const SE3& T, const IcpOptions& optio
     : target_from_source(T),
       rotation_f(T.RotationMatrix().cast<float>()),
       translation_f(T.translation().cast<float>()),
-      max_distance_m(static_cast<float>(options.max_correspondence_distance_m)),
-      min_cos_normal_angle(static_cast<float>(std::cos(options.max_normal_angle_deg * kDegToRad))),
-      min_planarity(static_cast<float>(options.min_planarity)),
+      criteria{static_cast<float>(options.max_correspondence_distance_m),
+               static_cast<float>(std::cos(options.max_normal_angle_deg * kDegToRad)),
+               static_cast<float>(options.min_planarity)},
       kernel(RobustKernelFromString(options.kernel)),
       kernel_scale_m(options.kernel_scale_m) {}
 
@@ -489,10 +477,8 @@ bool LinearizePoint(const IcpTarget& target,
   Eigen::Vector3f q, nq;
   const bool matched =
       state != nullptr
-          ? target.MatchTracked(p_t, n_t, ctx.max_distance_m, ctx.min_cos_normal_angle,
-                                ctx.min_planarity, &q, &nq, state)
-          : target.Match(p_t, n_t, ctx.max_distance_m, ctx.min_cos_normal_angle, ctx.min_planarity,
-                         &q, &nq);
+          ? target.MatchTracked(p_t, n_t, ctx.criteria, &q, &nq, state)
+          : target.Match(p_t, n_t, ctx.criteria, &q, &nq);
   if (!matched) return false;
   LinearizeMatch(ctx, p, q, nq, term);
   if (target_point != nullptr) *target_point = q;

@@ -74,6 +74,13 @@ struct IcpOptions {
   bool Check() const;
 };
 
+// What an admissible match satisfies (IcpOptions in the form the targets use).
+struct MatchCriteria {
+  float max_distance_m = 1.f;        // |Tp - q| at most this (m)
+  float min_cos_normal_angle = 0.f;  // |n_source . n_target| at least this, when the source normal is given
+  float min_planarity = 0.f;         // target points with lower planarity are not matched
+};
+
 // Where source points find their matches. Match() receives a source point and
 // (optionally, zero if unknown) its normal, both already mapped into the target
 // frame, and returns the matched target point and its unit normal, or false
@@ -83,9 +90,7 @@ class IcpTarget {
   virtual ~IcpTarget() = default;
   virtual bool Match(const Eigen::Vector3f& point,
                      const Eigen::Vector3f& normal,
-                     float max_distance_m,
-                     float min_cos_normal_angle,
-                     float min_planarity,
+                     const MatchCriteria& criteria,
                      Eigen::Vector3f* target_point,
                      Eigen::Vector3f* target_normal) const = 0;
   virtual size_t size() const = 0;
@@ -97,14 +102,11 @@ class IcpTarget {
   static constexpr uint32_t kNoHint = 0xffffffffu;
   virtual bool MatchWithHint(const Eigen::Vector3f& point,
                              const Eigen::Vector3f& normal,
-                             float max_distance_m,
-                             float min_cos_normal_angle,
-                             float min_planarity,
+                             const MatchCriteria& criteria,
                              Eigen::Vector3f* target_point,
                              Eigen::Vector3f* target_normal,
                              uint32_t* /*hint*/) const {
-    return Match(point, normal, max_distance_m, min_cos_normal_angle, min_planarity, target_point,
-                 target_normal);
+    return Match(point, normal, criteria, target_point, target_normal);
   }
   // What one source point carries from one association to the next
   // (MatchTracked); start from the default.
@@ -123,14 +125,11 @@ class IcpTarget {
   // on state->index.
   virtual bool MatchTracked(const Eigen::Vector3f& point,
                             const Eigen::Vector3f& normal,
-                            float max_distance_m,
-                            float min_cos_normal_angle,
-                            float min_planarity,
+                            const MatchCriteria& criteria,
                             Eigen::Vector3f* target_point,
                             Eigen::Vector3f* target_normal,
                             MatchState* state) const {
-    return MatchWithHint(point, normal, max_distance_m, min_cos_normal_angle, min_planarity,
-                         target_point, target_normal, &state->index);
+    return MatchWithHint(point, normal, criteria, target_point, target_normal, &state->index);
   }
 };
 
@@ -155,24 +154,18 @@ class KdTreeTarget : public IcpTarget {
 
   bool Match(const Eigen::Vector3f& point,
              const Eigen::Vector3f& normal,
-             float max_distance_m,
-             float min_cos_normal_angle,
-             float min_planarity,
+             const MatchCriteria& criteria,
              Eigen::Vector3f* target_point,
              Eigen::Vector3f* target_normal) const override;
   bool MatchWithHint(const Eigen::Vector3f& point,
                      const Eigen::Vector3f& normal,
-                     float max_distance_m,
-                     float min_cos_normal_angle,
-                     float min_planarity,
+                     const MatchCriteria& criteria,
                      Eigen::Vector3f* target_point,
                      Eigen::Vector3f* target_normal,
                      uint32_t* hint) const override;
   bool MatchTracked(const Eigen::Vector3f& point,
                     const Eigen::Vector3f& normal,
-                    float max_distance_m,
-                    float min_cos_normal_angle,
-                    float min_planarity,
+                    const MatchCriteria& criteria,
                     Eigen::Vector3f* target_point,
                     Eigen::Vector3f* target_normal,
                     MatchState* state) const override;
@@ -191,8 +184,7 @@ class KdTreeTarget : public IcpTarget {
   // fills the outputs when it is accepted.
   bool AcceptMatch(uint32_t index,
                    const Eigen::Vector3f& normal,
-                   float min_cos_normal_angle,
-                   float min_planarity,
+                   const MatchCriteria& criteria,
                    Eigen::Vector3f* target_point,
                    Eigen::Vector3f* target_normal) const;
   KdTree tree_;
@@ -210,7 +202,7 @@ struct PinholeIntrinsics {
 // Organised RGB-D vertex maps: the target frame is the target camera frame;
 // a point is projected, rounded to the nearest pixel, and matched to that
 // pixel's vertex if it is inside the image, the vertex is valid (z > 0), closer
-// than max_distance_m and (with source normals) within the normal angle.
+// than criteria.max_distance_m and (with source normals) within the normal angle.
 class ProjectiveTarget : public IcpTarget {
  public:
   // vertex_map: width*height row-major points in the camera frame (non-finite or
@@ -220,9 +212,7 @@ class ProjectiveTarget : public IcpTarget {
 
   bool Match(const Eigen::Vector3f& point,
              const Eigen::Vector3f& normal,
-             float max_distance_m,
-             float min_cos_normal_angle,
-             float min_planarity,
+             const MatchCriteria& criteria,
              Eigen::Vector3f* target_point,
              Eigen::Vector3f* target_normal) const override;
   size_t size() const override { return vertex_map_.size(); }

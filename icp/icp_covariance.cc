@@ -220,8 +220,7 @@ ClusterSandwich ComputeClusterSandwich(const PointSet& source,
       const Eigen::Vector3f p_t = ctx.rotation_f * source[i] + ctx.translation_f;
       Eigen::Vector3f q, nq;
       uint32_t index = IcpTarget::kNoHint;
-      valid[i] = target.MatchWithHint(p_t, ctx.rotation_f * nrm, ctx.max_distance_m,
-                                      ctx.min_cos_normal_angle, ctx.min_planarity, &q, &nq, &index)
+      valid[i] = target.MatchWithHint(p_t, ctx.rotation_f * nrm, ctx.criteria, &q, &nq, &index)
                      ? 1
                      : 0;
       if (valid[i]) {

@@ -16,9 +16,7 @@ struct LinearizationContext {
   SE3 target_from_source;
   Eigen::Matrix3f rotation_f;
   Eigen::Vector3f translation_f;
-  float max_distance_m;
-  float min_cos_normal_angle;
-  float min_planarity;
+  MatchCriteria criteria;
   RobustKernel kernel;
   double kernel_scale_m;
 };

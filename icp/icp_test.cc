@@ -13,6 +13,9 @@
 namespace lisfm {
 namespace {
 
+// Matches within 0.5 m, no normal-angle or planarity test.
+constexpr MatchCriteria kWithin50cm{0.5f, 0.f, 0.f};
+
 const Eigen::Vector3d kRoom(3.0, 2.0, 4.0);  // half sizes of the synthetic room (m)
 
 // Analytic point-to-plane Jacobian vs central differences of r(T Exp(xi)).
@@ -69,7 +72,7 @@ TEST(KdTreeTarget, MatchWithHintEqualsMatch) {
     const Eigen::Vector3f query =
         target[any(test::Rng())] + 0.2f * Eigen::Vector3f(g(test::Rng()), g(test::Rng()), g(test::Rng()));
     Eigen::Vector3f q0, n0;
-    const bool ok0 = model.Match(query, Eigen::Vector3f::Zero(), 0.5f, 0.f, 0.f, &q0, &n0);
+    const bool ok0 = model.Match(query, Eigen::Vector3f::Zero(), kWithin50cm, &q0, &n0);
     uint32_t nearest = IcpTarget::kNoHint;
     if (ok0) {
       float d2 = 0;
@@ -78,7 +81,7 @@ TEST(KdTreeTarget, MatchWithHintEqualsMatch) {
     for (uint32_t hint : {IcpTarget::kNoHint, nearest, any(test::Rng()), any(test::Rng())}) {
       Eigen::Vector3f q1, n1;
       uint32_t h = hint;
-      const bool ok1 = model.MatchWithHint(query, Eigen::Vector3f::Zero(), 0.5f, 0.f, 0.f, &q1, &n1, &h);
+      const bool ok1 = model.MatchWithHint(query, Eigen::Vector3f::Zero(), kWithin50cm, &q1, &n1, &h);
       ASSERT_EQ(ok0, ok1) << "trial " << trial << " hint " << hint;
       if (ok0) {
         EXPECT_EQ(q0, q1) << "trial " << trial << " hint " << hint;
@@ -111,11 +114,11 @@ TEST(KdTreeTarget, MatchTrackedEqualsMatch) {
       const Eigen::Vector3f dir(g(test::Rng()), g(test::Rng()), g(test::Rng()));
       query += std::exp(log_step(test::Rng())) * dir.normalized();
       Eigen::Vector3f q0, n0, q1, n1;
-      const bool ok0 = model.Match(query, Eigen::Vector3f::Zero(), 0.5f, 0.f, 0.f, &q0, &n0);
+      const bool ok0 = model.Match(query, Eigen::Vector3f::Zero(), kWithin50cm, &q0, &n0);
       const Eigen::Vector3f anchor_before = state.anchor;
       const bool tracked_before = state.margin_m > 0;
       const bool ok1 =
-          model.MatchTracked(query, Eigen::Vector3f::Zero(), 0.5f, 0.f, 0.f, &q1, &n1, &state);
+          model.MatchTracked(query, Eigen::Vector3f::Zero(), kWithin50cm, &q1, &n1, &state);
       ASSERT_EQ(ok0, ok1) << "walk " << walk << " step " << step;
       if (ok0) {
         EXPECT_EQ(q0, q1) << "walk " << walk << " step " << step;
@@ -172,7 +175,7 @@ TEST(RegisterPointToPlane, InnerIterationsKeepTheFixedPoint) {
   const Eigen::Vector3f t = inner.target_from_source.translation().cast<float>();
   for (const Eigen::Vector3f& p : source) {
     Eigen::Vector3f q, n;
-    if (!model.Match(R * p + t, Eigen::Vector3f::Zero(), 1.f, 0.f, 0.f, &q, &n)) continue;
+    if (!model.Match(R * p + t, Eigen::Vector3f::Zero(), MatchCriteria{1.f, 0.f, 0.f}, &q, &n)) continue;
     Eigen::Matrix<double, 1, 6> J;
     const double r = PointToPlaneResidual(inner.target_from_source, p.cast<double>(),
                                           q.cast<double>(), n.cast<double>(), &J);

@@ -18,15 +18,13 @@ class VoxelMapTarget : public IcpTarget {
 
   bool Match(const Eigen::Vector3f& point,
              const Eigen::Vector3f& /*normal*/,
-             float max_distance_m,
-             float /*min_cos_normal_angle*/,
-             float /*min_planarity*/,
+             const MatchCriteria& criteria,  // only max_distance_m: the planes are fitted here
              Eigen::Vector3f* target_point,
              Eigen::Vector3f* target_normal) const override {
     thread_local std::vector<Eigen::Vector3f> nbrs;
     thread_local std::vector<float> d2;
     const int n = map_.KnnSearch(point, options_.num_neighbours,
-                                 std::min<double>(max_distance_m, options_.max_neighbour_distance),
+                                 std::min<double>(criteria.max_distance_m, options_.max_neighbour_distance),
                                  &nbrs, &d2);
     if (n < options_.num_neighbours) return false;
     Mat3 AtA = Mat3::Zero();
