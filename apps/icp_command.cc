@@ -132,6 +132,7 @@ int RunIcp(int argc, char** argv) {
                     "Gaussian prior on the pose around --init_path, translation sigma (m; 0 = flat)");
   if (!options.Parse(argc, argv)) return 0;
   bayes.sgld.seed = static_cast<uint64_t>(seed);
+  NormalOptions target_normals = normal_options;
   if (method == "bayesian") {
     // The calibrated association of Bayesian ICP (BayesianIcpOptions): the Icp.*
     // options except kernel, kernel scale and normal k, which come from Bayesian.*.
@@ -140,9 +141,8 @@ int RunIcp(int argc, char** argv) {
     bayes.icp = icp;
     bayes.icp.kernel = kernel;
     bayes.icp.kernel_scale_m = kernel_scale;
+    target_normals.num_neighbors = bayes.normal_neighbors;
   }
-  NormalOptions target_normals = normal_options;
-  if (method == "bayesian") target_normals.num_neighbors = bayes.normal_neighbors;
   if (!icp.Check()) throw UsageError("invalid Icp.* options (see lisfm icp -h for ranges)");
   if (!target_normals.Check()) {
     throw UsageError("Icp.normal_neighbors (Bayesian.normal_neighbors with --method bayesian) must be "

@@ -100,7 +100,7 @@ SgldResult SampleSgld(const SgldModel& model,
 // 0.008 deg / 0.6 mm with Cauchy 3 cm. Such errors are shared by whole surfaces,
 // which no noise model sees. 5 cm rather than 3 cm: on the real BALM pairs
 // Cauchy 3 cm (k = 20 normals) took 49 of 50 iterations on full34->full33,
-// 5 cm 24 (docs/BENCHMARKS.md, "Covariance calibration, fourth round").
+// 5 cm took 24 (docs/BENCHMARKS.md, "Covariance calibration, fourth round").
 IcpOptions BayesianDefaultIcpOptions();
 
 struct BayesianIcpOptions {
@@ -147,7 +147,7 @@ struct BayesianIcpOptions {
   //    0.984 fitted on 400 office pairs), frozen, then run once on FRESH held-out
   //    pairs (seeds 22/23): 76.0 % / 16.0 / 6.0, worse than session 3 on the same
   //    pairs (81.5 % / 8.7): not adopted, plane_fit_variance stays an option (off).
-  //  - session 4, second try = these defaults: block tempering on, 24 cells, scale
+  //  - session 4, second try (the session-4 defaults): block tempering on, 24 cells, scale
   //    1.049 by one fixed-point step sqrt(mean NEES / 6) on 400 office pairs (office
   //    seeds 11 + 31); frozen, then run once on new FRESH held-out pairs (seeds 32/33,
   //    200 pairs): coverage 86.0 %, mean NEES 7.69, median 4.99 (session 3 on the same
