@@ -111,6 +111,9 @@ int RunIcp(int argc, char** argv) {
                     "robust kernel scale of --method bayesian (m; replaces Icp.kernel_scale)");
   options.AddInt("Bayesian.normal_neighbors", &bayes.normal_neighbors,
                  "k of the target normals of --method bayesian (replaces Icp.normal_neighbors)");
+  options.AddDouble("Bayesian.min_planarity", &bayes.icp.min_planarity,
+                    "ignore target points with lower planarity in --method bayesian (replaces "
+                    "Icp.min_planarity; calibrated with 0.1)");
   options.AddInt("Bayesian.iterations", &bayes.sgld.num_iterations, "SGLD iterations");
   options.AddInt("Bayesian.burn_in", &bayes.sgld.burn_in, "SGLD burn-in iterations");
   options.AddInt("Bayesian.thinning", &bayes.sgld.thinning, "keep every k-th sample");
@@ -120,8 +123,10 @@ int RunIcp(int argc, char** argv) {
   options.AddInt("Bayesian.seed", &seed, "random seed of the chain");
   options.AddInt("Bayesian.num_correlation_cells", &bayes.num_correlation_cells,
                  "spatial cells of the per-pair (cluster sandwich) noise estimate");
+  options.AddDouble("Bayesian.leverage_power", &bayes.jackknife_leverage_power,
+                    "leverage adjustment of the cluster sandwich: 0 = CR1 (calibrated), 1 = CR3 jackknife");
   options.AddDouble("Bayesian.noise_sigma_scale", &bayes.noise_sigma_scale,
-                    "multiplies the per-pair likelihood sigma (fitted on simulated office pairs)");
+                    "multiplies the per-pair likelihood sigma (fitted on simulated office-type pairs)");
   options.AddBool("Bayesian.plane_fit_variance", &bayes.plane_fit_variance,
                   "per-correspondence variance from the target plane fit (normal uncertainty x offset)");
   options.AddBool("Bayesian.block_tempering", &bayes.block_tempering,
@@ -135,12 +140,15 @@ int RunIcp(int argc, char** argv) {
   NormalOptions target_normals = normal_options;
   if (method == "bayesian") {
     // The calibrated association of Bayesian ICP (BayesianIcpOptions): the Icp.*
-    // options except kernel, kernel scale and normal k, which come from Bayesian.*.
+    // options except kernel, kernel scale, planarity gate and normal k, which come
+    // from Bayesian.*.
     const std::string kernel = bayes.icp.kernel;
     const double kernel_scale = bayes.icp.kernel_scale_m;
+    const double min_planarity = bayes.icp.min_planarity;
     bayes.icp = icp;
     bayes.icp.kernel = kernel;
     bayes.icp.kernel_scale_m = kernel_scale;
+    bayes.icp.min_planarity = min_planarity;
     target_normals.num_neighbors = bayes.normal_neighbors;
   }
   if (!icp.Check()) throw UsageError("invalid Icp.* options (see lisfm icp -h for ranges)");

@@ -99,12 +99,14 @@ IcpOptions BayesianDefaultIcpOptions() {
   IcpOptions options;
   options.kernel = "cauchy";
   options.kernel_scale_m = 0.05;
+  options.min_planarity = 0.1;
   return options;
 }
 
 bool BayesianIcpOptions::Check() const {
   return icp.Check() && normal_neighbors >= 3 && sgld.Check() && noise_sigma_m >= 0 && noise_sigma_scale > 0 &&
          correlation_length_m >= 0 && num_correlation_cells >= 0 && num_correlation_cells != 1 &&
+         jackknife_leverage_power >= 0 &&
          prior_sigma_rotation_rad >= 0 && prior_sigma_translation_m >= 0 &&
          correspondence_variance.Check();
 }
@@ -261,16 +263,17 @@ BayesianIcpResult RegisterBayesian(const PointSet& source,
     const ClusterSandwich sandwich =
         ComputeClusterSandwich(source, target, result.icp.target_from_source, options.icp,
                                result.cell_size_m, source_normals, variance_model.get(),
-                               &mode_matches);
+                               &mode_matches, options.jackknife_leverage_power);
     variance_reference_m2 = sandwich.variance_reference_m2;
-    sigma = options.noise_sigma_scale * std::sqrt(sandwich.effective_variance_m2);
+    const double effective_variance = sandwich.effective_variance_m2;
+    const Mat6& jack = sandwich.jackknife_covariance;
+    sigma = options.noise_sigma_scale * std::sqrt(effective_variance);
     if (options.block_tempering) {
       // Block factors f_b = tr(L_bb^-1 A_bb) / 3, L = sigma_eff^2 H^-1 the tempered
       // Laplace covariance and A the jackknife: the expected NEES / 3 of each 3x3
       // marginal of L under errors ~ N(0, A). Clamped to [1/16, 16] (a cell alone
       // determining a block makes the jackknife block arbitrarily large or small).
-      const Mat6 laplace = sandwich.effective_variance_m2 * SafeInverse(sandwich.hessian);
-      const Mat6& jack = sandwich.jackknife_covariance;
+      const Mat6 laplace = effective_variance * SafeInverse(sandwich.hessian);
       const double f_rot =
           laplace.topLeftCorner<3, 3>().llt().solve(jack.topLeftCorner<3, 3>()).trace() / 3.0;
       const double f_trans =
@@ -279,6 +282,18 @@ BayesianIcpResult RegisterBayesian(const PointSet& source,
         return std::isfinite(f) && f > 0 ? std::clamp(f, 1.0 / 16.0, 16.0) : 1.0;
       };
       result.block_factors << clamp_factor(f_rot), clamp_factor(f_trans);
+      const Eigen::LLT<Eigen::Matrix3d> l_rot(laplace.topLeftCorner<3, 3>());
+      const Eigen::LLT<Eigen::Matrix3d> l_trans(laplace.bottomRightCorner<3, 3>());
+      Eigen::Vector2d sum = Eigen::Vector2d::Zero(), sum_sq = Eigen::Vector2d::Zero();
+      for (const Vec6& d : sandwich.jackknife_deltas) {
+        const Eigen::Vector2d v(d.head<3>().dot(l_rot.solve(d.head<3>())),
+                                d.tail<3>().dot(l_trans.solve(d.tail<3>())));
+        sum += v;
+        sum_sq += v.cwiseProduct(v);
+      }
+      for (int b = 0; b < 2; ++b) {
+        result.block_effective_cells(b) = sum_sq(b) > 0 ? sum(b) * sum(b) / sum_sq(b) : 0.0;
+      }
     }
     result.num_clusters = sandwich.num_clusters;
     // A perfect fit (synthetic data) has zero residuals: floor sigma at 1 um.

@@ -196,10 +196,12 @@ ClusterSandwich ComputeClusterSandwich(const PointSet& source,
                                        double cell_size_m,
                                        const std::vector<Eigen::Vector3f>& source_normals,
                                        const CorrespondenceVarianceModel* variance_model,
-                                       std::vector<uint32_t>* matched_target_indices) {
+                                       std::vector<uint32_t>* matched_target_indices,
+                                       double leverage_power) {
   CheckIcpSource(source, source_normals);
   THROW_CHECK_MSG(options.Check(), "invalid IcpOptions");
   THROW_CHECK_GE(cell_size_m, 0.0);
+  THROW_CHECK_GE(leverage_power, 0.0);
   THROW_CHECK_MSG(variance_model == nullptr || &variance_model->target() == &target,
                   "CorrespondenceVarianceModel built for another target");
   const size_t n = source.size();
@@ -306,10 +308,15 @@ ClusterSandwich ComputeClusterSandwich(const PointSet& source,
   std::vector<Vec6> deltas(out.num_clusters);
   Vec6 delta_mean = Vec6::Zero();
   for (size_t c = 0; c < out.num_clusters; ++c) {
-    const Eigen::SelfAdjointEigenSolver<Mat6> a(W * cell_hessians[c] * W.transpose());
-    const Vec6 keep = (1.0 - a.eigenvalues().array().min(kMaxLeverage)).inverse().matrix();
-    deltas[c] = a.eigenvectors() * keep.asDiagonal() * a.eigenvectors().transpose() *
-                (W * cell_scores[c]);
+    if (leverage_power == 0) {
+      deltas[c] = W * cell_scores[c];
+    } else {
+      const Eigen::SelfAdjointEigenSolver<Mat6> a(W * cell_hessians[c] * W.transpose());
+      const Vec6 keep =
+          (1.0 - a.eigenvalues().array().min(kMaxLeverage)).pow(-leverage_power).matrix();
+      deltas[c] = a.eigenvectors() * keep.asDiagonal() * a.eigenvectors().transpose() *
+                  (W * cell_scores[c]);
+    }
     delta_mean += deltas[c];
   }
   delta_mean /= g;
@@ -317,6 +324,8 @@ ClusterSandwich ComputeClusterSandwich(const PointSet& source,
   for (const Vec6& d : deltas) jack_w.noalias() += (d - delta_mean) * (d - delta_mean).transpose();
   jack_w *= (g - 1.0) / g;
   out.jackknife_covariance = W.transpose() * jack_w * W + null_space;
+  out.jackknife_deltas.reserve(deltas.size());
+  for (const Vec6& d : deltas) out.jackknife_deltas.push_back(W.transpose() * (d - delta_mean));
   const int n_used = std::max(used, 1);
   out.effective_variance_cr1_m2 = meat_w.trace() / n_used;
   out.effective_variance_m2 = jack_w.trace() / n_used;

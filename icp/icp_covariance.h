@@ -115,6 +115,10 @@ struct ClusterSandwich {
   // whitened leverage capped at 0.95). Unlike CR1 it does not shrink when a few
   // large clusters dominate a direction (the residuals there were fitted by it).
   Mat6 jackknife_covariance = Mat6::Zero();
+  // The G centred jackknife deltas (d_c - mean d) in parameter coordinates (the
+  // one-step change of the estimate when cell c is left out, right perturbation):
+  // jackknife_covariance = (G-1)/G sum of their outer products (+ the null space).
+  std::vector<Vec6> jackknife_deltas;
   size_t num_terms = 0;            // matched source points
   size_t num_clusters = 0;         // G: occupied cells with at least one match
   double residual_variance_m2 = 0;   // sum w r^2 / (N - 6): the i.i.d. sigma^2
@@ -159,6 +163,8 @@ double CellSizeForClusterCount(const PointSet& points, size_t num_cells);
 // variance_model (optional; its target must be `target`): heteroscedastic weights,
 // see ClusterSandwich::variance_reference_m2. matched_target_indices (optional,
 // with a model): per source point the matched target index, IcpTarget::kNoHint if none.
+// leverage_power p: the jackknife deltas use (I - A_c)^-p (1: CR3, the exact
+// delete-one-cluster change; 0.5: the CR2 / Bell-McCaffrey adjustment).
 // cell_size_m = 0 puts every point in its own cluster (the Censi/HC1 form). Throws InputError for bad clouds (as
 // RegisterPointToPlane) and when fewer than 7 points or 2 clusters match.
 ClusterSandwich ComputeClusterSandwich(const PointSet& source,
@@ -168,7 +174,8 @@ ClusterSandwich ComputeClusterSandwich(const PointSet& source,
                                        double cell_size_m,
                                        const std::vector<Eigen::Vector3f>& source_normals = {},
                                        const CorrespondenceVarianceModel* variance_model = nullptr,
-                                       std::vector<uint32_t>* matched_target_indices = nullptr);
+                                       std::vector<uint32_t>* matched_target_indices = nullptr,
+                                       double leverage_power = 1.0);
 
 // One registration outcome for calibration: estimate, its covariance (right
 // perturbation) and the true transform.

@@ -97,6 +97,42 @@ TEST(ComputeClusterSandwich, PointClustersGiveCensi) {
   EXPECT_THROW(ComputeClusterSandwich(PointSet{}, model, SE3(), options, 1.0), InputError);
 }
 
+// leverage_power selects the cluster deltas: 0 gives the centred CR1 sandwich,
+// (G-1)/G H^-1 sum_c (g_c - mean g)(g_c - mean g)^T H^-1, which at the optimum
+// (sum g_c ~ 0) is ((G-1)/G)^2 times CR1; 1 (CR3) inflates every cell's delta by
+// (I - A_c)^-1, so its effective variance is larger; the deltas returned are the
+// centred ones the jackknife covariance is built from.
+TEST(ComputeClusterSandwich, LeveragePowerZeroIsCentredCr1) {
+  const Eigen::Vector3d room(3.0, 2.0, 4.0);
+  const PointSet target = test::SampleBoxRoom(room, 3000, 0.0, test::Rng());
+  const PointSet source = test::SampleBoxRoom(room, 2000, 0.005, test::Rng());
+  const KdTreeTarget model(target, NormalOptions());
+  const IcpOptions options;
+  const IcpResult r = RegisterPointToPlane(source, model, SE3(), options);
+  ASSERT_TRUE(r.converged) << r.message;
+  const ClusterSandwich cr0 = ComputeClusterSandwich(source, model, r.target_from_source, options,
+                                                     1.0, {}, nullptr, nullptr, 0.0);
+  const ClusterSandwich cr3 = ComputeClusterSandwich(source, model, r.target_from_source, options,
+                                                     1.0, {}, nullptr, nullptr, 1.0);
+  ASSERT_GT(cr0.num_clusters, 10u);
+  const double g = static_cast<double>(cr0.num_clusters);
+  // The sum of the cell scores is the gradient at the returned pose: one
+  // convergence step (1e-4) from zero, so a few % of the score spread.
+  EXPECT_LT((cr0.jackknife_covariance - std::pow((g - 1) / g, 2) * cr0.covariance).norm(),
+            0.05 * cr0.covariance.norm());
+  EXPECT_GT(cr3.effective_variance_m2, cr0.effective_variance_m2);
+  EXPECT_NEAR(cr0.effective_variance_cr1_m2, cr3.effective_variance_cr1_m2, 1e-15);
+  Mat6 rebuilt = Mat6::Zero();
+  Vec6 sum = Vec6::Zero();
+  for (const Vec6& d : cr0.jackknife_deltas) {
+    rebuilt += d * d.transpose();
+    sum += d;
+  }
+  EXPECT_LT(sum.norm(), 1e-9 * std::sqrt(cr0.jackknife_covariance.trace()));
+  EXPECT_LT(((g - 1) / g * rebuilt - cr0.jackknife_covariance).norm(),
+            1e-9 * cr0.jackknife_covariance.norm());
+}
+
 // CellSizeForClusterCount returns an edge where the occupied-cell count crosses
 // the requested number: at least that many cells, fewer at an edge 0.1 % larger
 // (the bisection's precision is ~0.01 %). 3372 points: below the 4096-point

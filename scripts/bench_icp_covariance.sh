@@ -1,15 +1,16 @@
 #!/usr/bin/env bash
 # Covariance calibration study (issue 5 item 6): simulated spinning-LiDAR scan
 # pairs with exactly known relative pose (sim/, static poses, 1 cm range noise,
-# initial-guess error 2 deg / 10 cm per axis) in the office (tuning), hall and
-# staircase (held out) scenes and a degenerate corridor (held out); per method
-# (closed form, Censi, cluster sandwich, Bayesian ICP: old model A, i.i.d. sigma,
-# per-pair cluster-sandwich sigma of sessions 3 and 4, the new default, and it with a
-# prior) the coverage of the 95 % ellipsoid, mean and median NEES and the time per
-# pair. The new default (session 5: Cauchy 0.05 m association with normals of 20
-# neighbours, 32-cell cluster-sandwich sigma + block tempering; the library's
-# defaults) has its scale re-fitted on 4 x PAIRS office pairs only, before any
-# held-out scene is simulated. Extra arguments go to the benchmark binary, e.g.
+# initial-guess error 2 deg / 10 cm per axis) in three office-generator scenes
+# (tuning: default, open-plan, narrow), the hall and staircase scenes (held out) and a
+# degenerate corridor (held out); per method (closed form, Censi, cluster sandwich,
+# Bayesian ICP: old model A, i.i.d. sigma, the defaults of sessions 3-5 and session
+# 6's first try, the new default, and it with a prior) the coverage of the 95 %
+# ellipsoid, mean and median NEES and the time per pair. The new default (session 6:
+# Cauchy 0.05 m association with a planarity gate of 0.1 and normals of 20
+# neighbours, 48-cell CR1 cluster-sandwich sigma + block tempering; the library's
+# defaults) has its scale re-fitted on 4 x PAIRS pairs of each tuning scene only,
+# before any held-out scene is simulated. Extra arguments go to the benchmark binary, e.g.
 # `--fresh 32 33` adds hall / staircase pairs of those seeds (fresh held-out sets),
 # `--timing` times ~25k-point pairs, `--plane` turns on the plane-fit variance.
 # Usage: scripts/bench_icp_covariance.sh [PAIRS_PER_SCENE] [BENCH ARGS...]   (default 100)

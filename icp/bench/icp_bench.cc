@@ -105,8 +105,8 @@ Outcome RunOurs(const Pair& p, bool bayesian, double* bayes_ms, double* closed_m
   *closed_ms = Ms(t1);
   if (!c.allFinite()) std::printf("non-finite closed form\n");
   if (bayesian) {
-    // Bayesian ICP with its own (calibrated) association: the library's kernel and
-    // normal k, the kernel scale in the same proportion to the pair's ICP scale
+    // Bayesian ICP with its own (calibrated) association: the library's kernel,
+    // planarity gate and normal k, the kernel scale in the same proportion to the pair's ICP scale
     // (LiDAR pairs: 0.05 m; bunny 2.5 mm).
     BayesianIcpOptions b;
     const double kernel_ratio = b.icp.kernel_scale_m / IcpOptions().kernel_scale_m;
@@ -120,8 +120,9 @@ Outcome RunOurs(const Pair& p, bool bayesian, double* bayes_ms, double* closed_m
     *bayes_ms = Ms(t2);
     double rot_deg = 0, trans_m = 0;
     Errors(br.posterior.mean.Matrix(), p.reference, &rot_deg, &trans_m);
-    std::printf("    bayesian (%s %.3f m, k = %d): posterior-mean error %.3f deg / %.4f m; %zu source / %zu target pts, %zu SGLD samples, %zu re-associations, std rot %.3f/%.3f/%.3f mrad, trans %.2f/%.2f/%.2f mm; closed form trans %.2f/%.2f/%.2f mm\n",
-                b.icp.kernel.c_str(), b.icp.kernel_scale_m, b.normal_neighbors, rot_deg, trans_m,
+    std::printf("    bayesian (%s %.3f m, k = %d, planarity >= %.2f): posterior-mean error %.3f deg / %.4f m; %zu source / %zu target pts, %zu SGLD samples, %zu re-associations, std rot %.3f/%.3f/%.3f mrad, trans %.2f/%.2f/%.2f mm; closed form trans %.2f/%.2f/%.2f mm\n",
+                b.icp.kernel.c_str(), b.icp.kernel_scale_m, b.normal_neighbors, b.icp.min_planarity,
+                rot_deg, trans_m,
                 src.size(), tgt_points.size(), br.posterior.num_samples,
                 br.posterior.num_term_evaluations, 1e3 * std::sqrt(br.posterior.covariance(0, 0)),
                 1e3 * std::sqrt(br.posterior.covariance(1, 1)), 1e3 * std::sqrt(br.posterior.covariance(2, 2)),
