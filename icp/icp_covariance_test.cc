@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <cstdio>
+#include <memory>
 #include <unordered_map>
 
 #include "core/errors.h"
@@ -76,13 +77,29 @@ TEST(SafeInverse, RegularAndSingular) {
 }
 
 // With every point its own cluster, CR1 is the Censi form times N/(N-1).
-TEST(ComputeClusterSandwich, PointClustersGiveCensi) {
+// A noise-free box room as target, a noisy (5 mm) resampling of it as source, and
+// the converged default ICP between them.
+struct RoomPair {
+  PointSet source;
+  std::unique_ptr<KdTreeTarget> model;
+  IcpResult result;
+};
+RoomPair RegisteredRoomPair(size_t target_points, size_t source_points) {
   const Eigen::Vector3d room(3.0, 2.0, 4.0);
-  const PointSet target = test::SampleBoxRoom(room, 1500, 0.0, test::Rng());
-  const PointSet source = test::SampleBoxRoom(room, 1500, 0.005, test::Rng());
-  const KdTreeTarget model(target, NormalOptions());
+  RoomPair pair;
+  pair.model = std::make_unique<KdTreeTarget>(
+      test::SampleBoxRoom(room, target_points, 0.0, test::Rng()), NormalOptions());
+  pair.source = test::SampleBoxRoom(room, source_points, 0.005, test::Rng());
+  pair.result = RegisterPointToPlane(pair.source, *pair.model, SE3(), IcpOptions());
+  return pair;
+}
+
+TEST(ComputeClusterSandwich, PointClustersGiveCensi) {
+  const RoomPair pair = RegisteredRoomPair(1500, 1500);
+  const PointSet& source = pair.source;
+  const KdTreeTarget& model = *pair.model;
+  const IcpResult& r = pair.result;
   const IcpOptions options;
-  const IcpResult r = RegisterPointToPlane(source, model, SE3(), options);
   ASSERT_TRUE(r.converged) << r.message;
   const ClusterSandwich s =
       ComputeClusterSandwich(source, model, r.target_from_source, options, 0.0);
@@ -103,12 +120,11 @@ TEST(ComputeClusterSandwich, PointClustersGiveCensi) {
 // (I - A_c)^-1, so its effective variance is larger; the deltas returned are the
 // centred ones the jackknife covariance is built from.
 TEST(ComputeClusterSandwich, LeveragePowerZeroIsCentredCr1) {
-  const Eigen::Vector3d room(3.0, 2.0, 4.0);
-  const PointSet target = test::SampleBoxRoom(room, 3000, 0.0, test::Rng());
-  const PointSet source = test::SampleBoxRoom(room, 2000, 0.005, test::Rng());
-  const KdTreeTarget model(target, NormalOptions());
+  const RoomPair pair = RegisteredRoomPair(3000, 2000);
+  const PointSet& source = pair.source;
+  const KdTreeTarget& model = *pair.model;
+  const IcpResult& r = pair.result;
   const IcpOptions options;
-  const IcpResult r = RegisterPointToPlane(source, model, SE3(), options);
   ASSERT_TRUE(r.converged) << r.message;
   const ClusterSandwich cr0 = ComputeClusterSandwich(source, model, r.target_from_source, options,
                                                      1.0, {}, nullptr, nullptr, 0.0);
