@@ -121,15 +121,13 @@ TEST(ComputeClusterSandwich, PointClustersGiveCensi) {
 // centred ones the jackknife covariance is built from.
 TEST(ComputeClusterSandwich, LeveragePowerZeroIsCentredCr1) {
   const RoomPair pair = RegisteredRoomPair(3000, 2000);
-  const PointSet& source = pair.source;
-  const KdTreeTarget& model = *pair.model;
-  const IcpResult& r = pair.result;
-  const IcpOptions options;
-  ASSERT_TRUE(r.converged) << r.message;
-  const ClusterSandwich cr0 = ComputeClusterSandwich(source, model, r.target_from_source, options,
-                                                     1.0, {}, nullptr, nullptr, 0.0);
-  const ClusterSandwich cr3 = ComputeClusterSandwich(source, model, r.target_from_source, options,
-                                                     1.0, {}, nullptr, nullptr, 1.0);
+  ASSERT_TRUE(pair.result.converged) << pair.result.message;
+  auto sandwich = [&](double leverage_power) {
+    return ComputeClusterSandwich(pair.source, *pair.model, pair.result.target_from_source,
+                                  IcpOptions(), 1.0, {}, nullptr, nullptr, leverage_power);
+  };
+  const ClusterSandwich cr0 = sandwich(0.0);
+  const ClusterSandwich cr3 = sandwich(1.0);
   ASSERT_GT(cr0.num_clusters, 10u);
   const double g = static_cast<double>(cr0.num_clusters);
   // The sum of the cell scores is the gradient at the returned pose: one
