@@ -265,25 +265,23 @@ BayesianIcpResult RegisterBayesian(const PointSet& source,
                                result.cell_size_m, source_normals, variance_model.get(),
                                &mode_matches, options.jackknife_leverage_power);
     variance_reference_m2 = sandwich.variance_reference_m2;
-    const double effective_variance = sandwich.effective_variance_m2;
-    const Mat6& jack = sandwich.jackknife_covariance;
-    sigma = options.noise_sigma_scale * std::sqrt(effective_variance);
+    sigma = options.noise_sigma_scale * std::sqrt(sandwich.effective_variance_m2);
     if (options.block_tempering) {
       // Block factors f_b = tr(L_bb^-1 A_bb) / 3, L = sigma_eff^2 H^-1 the tempered
       // Laplace covariance and A the jackknife: the expected NEES / 3 of each 3x3
       // marginal of L under errors ~ N(0, A). Clamped to [1/16, 16] (a cell alone
       // determining a block makes the jackknife block arbitrarily large or small).
-      const Mat6 laplace = effective_variance * SafeInverse(sandwich.hessian);
-      const double f_rot =
-          laplace.topLeftCorner<3, 3>().llt().solve(jack.topLeftCorner<3, 3>()).trace() / 3.0;
-      const double f_trans =
-          laplace.bottomRightCorner<3, 3>().llt().solve(jack.bottomRightCorner<3, 3>()).trace() / 3.0;
+      const Mat6 laplace = sandwich.effective_variance_m2 * SafeInverse(sandwich.hessian);
+      const Mat6& jack = sandwich.jackknife_covariance;
+      const Eigen::LLT<Eigen::Matrix3d> l_rot(laplace.topLeftCorner<3, 3>());
+      const Eigen::LLT<Eigen::Matrix3d> l_trans(laplace.bottomRightCorner<3, 3>());
+      const double f_rot = l_rot.solve(jack.topLeftCorner<3, 3>()).trace() / 3.0;
+      const double f_trans = l_trans.solve(jack.bottomRightCorner<3, 3>()).trace() / 3.0;
       auto clamp_factor = [](double f) {
         return std::isfinite(f) && f > 0 ? std::clamp(f, 1.0 / 16.0, 16.0) : 1.0;
       };
       result.block_factors << clamp_factor(f_rot), clamp_factor(f_trans);
-      const Eigen::LLT<Eigen::Matrix3d> l_rot(laplace.topLeftCorner<3, 3>());
-      const Eigen::LLT<Eigen::Matrix3d> l_trans(laplace.bottomRightCorner<3, 3>());
+      // Diagnostic: how many cells share each block's jackknife variance.
       Eigen::Vector2d sum = Eigen::Vector2d::Zero(), sum_sq = Eigen::Vector2d::Zero();
       for (const Vec6& d : sandwich.jackknife_deltas) {
         const Eigen::Vector2d v(d.head<3>().dot(l_rot.solve(d.head<3>())),
