@@ -125,6 +125,10 @@ int RunIcp(int argc, char** argv) {
                  "spatial cells of the per-pair (cluster sandwich) noise estimate");
   options.AddDouble("Bayesian.leverage_power", &bayes.jackknife_leverage_power,
                     "leverage adjustment of the cluster sandwich: 0 = CR1 (calibrated), 1 = CR3 jackknife");
+  options.AddDouble("Bayesian.refine_max_correspondence_distance",
+                    &bayes.refine_max_correspondence_distance_m,
+                    "after the ICP, refine it and associate the posterior within this distance (m; "
+                    "0 = Icp.max_correspondence_distance)");
   options.AddDouble("Bayesian.noise_sigma_scale", &bayes.noise_sigma_scale,
                     "multiplies the per-pair likelihood sigma (fitted on simulated office-type pairs)");
   options.AddBool("Bayesian.plane_fit_variance", &bayes.plane_fit_variance,

@@ -106,7 +106,7 @@ IcpOptions BayesianDefaultIcpOptions() {
 bool BayesianIcpOptions::Check() const {
   return icp.Check() && normal_neighbors >= 3 && sgld.Check() && noise_sigma_m >= 0 && noise_sigma_scale > 0 &&
          correlation_length_m >= 0 && num_correlation_cells >= 0 && num_correlation_cells != 1 &&
-         jackknife_leverage_power >= 0 &&
+         jackknife_leverage_power >= 0 && refine_max_correspondence_distance_m >= 0 &&
          prior_sigma_rotation_rad >= 0 && prior_sigma_translation_m >= 0 &&
          correspondence_variance.Check();
 }
@@ -246,6 +246,18 @@ BayesianIcpResult RegisterBayesian(const PointSet& source,
   THROW_CHECK_MSG(options.Check(), "invalid BayesianIcpOptions");
   BayesianIcpResult result;
   result.icp = RegisterPointToPlane(source, target, initial, options.icp, source_normals);
+  // The likelihood's association: the ICP's, with the correspondence distance
+  // narrowed to refine_max_correspondence_distance_m once the ICP has converged
+  // (the ICP estimate is refined with it first, so the chain starts at its mode).
+  IcpOptions association = options.icp;
+  if (options.refine_max_correspondence_distance_m > 0 &&
+      options.refine_max_correspondence_distance_m < options.icp.max_correspondence_distance_m) {
+    association.max_correspondence_distance_m = options.refine_max_correspondence_distance_m;
+    IcpResult refined = RegisterPointToPlane(source, target, result.icp.target_from_source,
+                                             association, source_normals);
+    refined.iterations += result.icp.iterations;
+    result.icp = std::move(refined);
+  }
   double sigma = options.noise_sigma_m;
   std::unique_ptr<CorrespondenceVarianceModel> variance_model;
   double variance_reference_m2 = 0;
@@ -261,7 +273,7 @@ BayesianIcpResult RegisterBayesian(const PointSet& source,
     result.cell_size_m =
         cells > 0 ? CellSizeForClusterCount(source, cells) : options.correlation_length_m;
     const ClusterSandwich sandwich =
-        ComputeClusterSandwich(source, target, result.icp.target_from_source, options.icp,
+        ComputeClusterSandwich(source, target, result.icp.target_from_source, association,
                                result.cell_size_m, source_normals, variance_model.get(),
                                &mode_matches, options.jackknife_leverage_power);
     variance_reference_m2 = sandwich.variance_reference_m2;
@@ -310,7 +322,7 @@ BayesianIcpResult RegisterBayesian(const PointSet& source,
     prior_precision.tail<3>().setConstant(1.0 / std::pow(options.prior_sigma_translation_m, 2));
   }
   prior.information = prior_precision.asDiagonal();
-  PointToPlaneModel model(source, source_normals, target, options.icp, variance_model.get(),
+  PointToPlaneModel model(source, source_normals, target, association, variance_model.get(),
                           variance_reference_m2);
   model.SetHints(std::move(mode_matches));
   result.posterior = SampleSgld(model, result.icp.target_from_source, result.noise_sigma_m,

@@ -131,8 +131,9 @@ TEST(IcpCommand, BayesianNormalNeighborsAreChecked) {
   EXPECT_EQ(RunCommand(base + "point_to_plane", &output), 0) << output;
 }
 
-// The planarity gate and leverage power of --method bayesian are range-checked
-// (usage error, exit 2) and written to config.yaml with the value used.
+// The planarity gate, leverage power and refinement distance of --method bayesian
+// are range-checked (usage error, exit 2) and written to config.yaml with the value
+// used.
 TEST(IcpCommand, BayesianGateAndLeveragePowerAreCheckedAndRecorded) {
   TempDir dir;
   WriteAsciiPcd(dir.File("target.pcd"), Room());
@@ -143,12 +144,20 @@ TEST(IcpCommand, BayesianGateAndLeveragePowerAreCheckedAndRecorded) {
   EXPECT_EQ(RunCommand(base + " --Bayesian.min_planarity 1.5", &output), 2) << output;
   EXPECT_NE(output.find("Bayesian"), std::string::npos) << output;
   EXPECT_EQ(RunCommand(base + " --Bayesian.leverage_power -1", &output), 2) << output;
+  EXPECT_EQ(RunCommand(base + " --Bayesian.refine_max_correspondence_distance -0.1", &output), 2)
+      << output;
   const std::string out_dir = dir.File("out");
-  EXPECT_EQ(RunCommand(base + " --Bayesian.min_planarity 0.2 --output_path " + out_dir, &output), 0)
+  EXPECT_EQ(RunCommand(base + " --Bayesian.min_planarity 0.2 "
+                             "--Bayesian.refine_max_correspondence_distance 0.2 --output_path " +
+                             out_dir,
+                         &output),
+            0)
       << output;
   const std::string config = ReadAll(out_dir + "/config.yaml");
   EXPECT_NE(config.find("Bayesian.min_planarity: 0.2"), std::string::npos) << config;
   EXPECT_NE(config.find("Bayesian.leverage_power: 0"), std::string::npos) << config;
+  EXPECT_NE(config.find("Bayesian.refine_max_correspondence_distance: 0.2"), std::string::npos)
+      << config;
 }
 
 // A single plane is degenerate: exit 0 (a result, not an error) but a WARNING
