@@ -85,12 +85,13 @@ inline PointCloud SimulateStaticScan(const sim::Scene& scene, const SE3& world_f
   return simulator.SimulateScan(0, scan_index);
 }
 
-// `count` pairs in `scene`, deterministic for `seed`.
-inline std::vector<SimScanPair> SimulateScanPairs(const sim::Scene& scene, int count,
-                                                  uint32_t seed,
+// `count` pairs in `scene` along `walking_route`, deterministic for `seed`.
+inline std::vector<SimScanPair> SimulateScanPairs(const sim::Scene& scene,
+                                                  const sim::WalkingRoute& walking_route,
+                                                  int count, uint32_t seed,
                                                   const SimScanPairOptions& options) {
-  std::vector<Vec3> route = scene.route().waypoints;
-  if (scene.route().closed && !route.empty()) route.push_back(route.front());
+  std::vector<Vec3> route = walking_route.waypoints;
+  if (walking_route.closed && !route.empty()) route.push_back(route.front());
   const double length = RouteLength(route);
   std::mt19937_64 rng(seed);
   std::uniform_real_distribution<double> unit(0.0, 1.0);
@@ -123,6 +124,102 @@ inline std::vector<SimScanPair> SimulateScanPairs(const sim::Scene& scene, int c
     pairs.push_back(std::move(pair));
   }
   return pairs;
+}
+
+// `count` pairs along the scene's own walking route.
+inline std::vector<SimScanPair> SimulateScanPairs(const sim::Scene& scene, int count,
+                                                  uint32_t seed,
+                                                  const SimScanPairOptions& options) {
+  return SimulateScanPairs(scene, scene.route(), count, seed, options);
+}
+
+// The 12 triangles of the axis-aligned box [lo, hi] (surface id `id`).
+inline void AppendBoxTriangles(const Eigen::Vector3f& lo, const Eigen::Vector3f& hi, uint32_t id,
+                               std::vector<sim::Triangle>* tris) {
+  const Eigen::Vector3f c[8] = {{lo.x(), lo.y(), lo.z()}, {hi.x(), lo.y(), lo.z()},
+                                {hi.x(), hi.y(), lo.z()}, {lo.x(), hi.y(), lo.z()},
+                                {lo.x(), lo.y(), hi.z()}, {hi.x(), lo.y(), hi.z()},
+                                {hi.x(), hi.y(), hi.z()}, {lo.x(), hi.y(), hi.z()}};
+  const int faces[6][4] = {{0, 3, 2, 1}, {4, 5, 6, 7}, {0, 1, 5, 4},
+                           {2, 3, 7, 6}, {1, 2, 6, 5}, {3, 0, 4, 7}};
+  for (const auto& f : faces) {
+    tris->push_back({c[f[0]], c[f[1]], c[f[2]], id});
+    tris->push_back({c[f[0]], c[f[2]], c[f[3]], id});
+  }
+}
+
+// A stair tower (a tuning scene of the covariance calibration, session 7; NOT the
+// sim's held-out "staircase" generator): a 6 x 4.4 m shaft of three 3 m storeys
+// with a switchback stair around an open 1.8 m well. Per storey, flight A (y in
+// [0, 1.3]) climbs +x over x in [1.6, 4.4] to a landing (x in [4.4, 6]) at +1.5 m,
+// flight B (y in [3.1, 4.4]) climbs -x to the next floor slab (x in [0, 1.6]);
+// 10 steps of 0.15 x 0.28 m, the ground flight solid, the others 0.25 m slabs;
+// handrail posts and rails along the well, a few crates on floors and landings
+// (placed from `seed`). The route walks from the ground floor up two storeys.
+inline std::unique_ptr<sim::Scene> StairTowerScene(uint32_t seed, sim::WalkingRoute* route) {
+  std::vector<sim::Triangle> tris;
+  uint32_t id = 0;
+  auto box = [&](double x0, double y0, double z0, double x1, double y1, double z1) {
+    AppendBoxTriangles(Eigen::Vector3f(x0, y0, z0), Eigen::Vector3f(x1, y1, z1), id++, &tris);
+  };
+  constexpr double kX = 6.0, kY = 4.4, kStorey = 3.0, kWall = 0.2;
+  constexpr int kStoreys = 3, kSteps = 10;
+  const double rise = 0.5 * kStorey / kSteps, tread = 2.8 / kSteps;
+  // Shell: floor, ceiling and four walls (boxes outside the shaft).
+  box(-kWall, -kWall, -kWall, kX + kWall, kY + kWall, 0);
+  box(-kWall, -kWall, kStoreys * kStorey, kX + kWall, kY + kWall, kStoreys * kStorey + kWall);
+  box(-kWall, -kWall, 0, 0, kY + kWall, kStoreys * kStorey);
+  box(kX, -kWall, 0, kX + kWall, kY + kWall, kStoreys * kStorey);
+  box(0, -kWall, 0, kX, 0, kStoreys * kStorey);
+  box(0, kY, 0, kX, kY + kWall, kStoreys * kStorey);
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  auto uniform = [&](double lo, double hi) { return lo + (hi - lo) * unit(rng); };
+  for (int s = 0; s < kStoreys; ++s) {
+    const double z = s * kStorey;
+    if (s > 0) box(0, 0, z - 0.2, 1.6, kY, z);             // floor slab
+    box(4.4, 0, z + 1.3, kX, kY, z + 1.5);  // landing slab
+    for (int i = 0; i < kSteps; ++i) {
+      const double top_a = z + (i + 1) * rise, top_b = z + 0.5 * kStorey + (i + 1) * rise;
+      const double bottom_a = s == 0 ? 0.0 : top_a - 0.25;
+      box(1.6 + i * tread, 0, bottom_a, 1.6 + (i + 1) * tread, 1.3, top_a);
+      box(4.4 - (i + 1) * tread, 3.1, top_b - 0.25, 4.4 - i * tread, kY, top_b);
+    }
+    // Handrail posts every ~0.7 m along both flights' well edges, and the rails.
+    for (int k = 0; k <= 4; ++k) {
+      const double x = 1.65 + k * 0.675;
+      const double za = z + (x - 1.6) / tread * rise, zb = z + 0.5 * kStorey + (4.4 - x) / tread * rise;
+      box(x, 1.25, za, x + 0.05, 1.3, za + 0.9);
+      box(x, 3.1, zb, x + 0.05, 3.15, zb + 0.9);
+    }
+    // Crates on the floor slab / ground floor and on the landing.
+    for (int k = 0; k < 2; ++k) {
+      const double w = uniform(0.3, 0.6), d = uniform(0.3, 0.6), h = uniform(0.3, 1.0);
+      const double y = uniform(0.0, kY - d);
+      box(0.0, y, z, w, y + d, z + h);
+      const double y2 = k == 0 ? uniform(0.0, 1.3 - d) : uniform(3.1, kY - d);
+      box(kX - w, y2, z + 1.5, kX, y2 + d, z + 1.5 + h);
+    }
+    // A pipe along the ceiling of each storey and a wall cabinet.
+    box(0, kY - 0.3, z + kStorey - 0.5, kX, kY - 0.2, z + kStorey - 0.4);
+    const double cy = uniform(1.4, 2.6);
+    box(0, cy, z + 1.2, 0.25, cy + 0.5, z + 1.9);
+  }
+  route->closed = false;
+  route->waypoints.clear();
+  constexpr double kDevice = 1.4;
+  for (int s = 0; s + 1 < kStoreys; ++s) {
+    const double z = s * kStorey + kDevice;
+    route->waypoints.push_back({0.8, 2.2, z});
+    route->waypoints.push_back({1.6, 0.65, z});
+    route->waypoints.push_back({4.4, 0.65, z + 0.5 * kStorey});
+    route->waypoints.push_back({5.2, 0.65, z + 0.5 * kStorey});
+    route->waypoints.push_back({5.2, 3.75, z + 0.5 * kStorey});
+    route->waypoints.push_back({4.4, 3.75, z + 0.5 * kStorey});
+    route->waypoints.push_back({1.6, 3.75, z + kStorey});
+  }
+  route->waypoints.push_back({0.8, 2.2, (kStoreys - 1) * kStorey + kDevice});
+  return sim::Scene::FromTriangles(std::move(tris));
 }
 
 // A straight corridor (width x height, `length` long along x, centred at the
