@@ -56,7 +56,9 @@
 //        [--leverage_power P] [--range_sigma M] [--source_voxel M] [--target_voxel M]
 //        [--voxel_nearest] [--prestage] [--target_mean N] [--refine M (the new
 //        default's refine_max_correspondence_distance_m)] [--init_scale F (multiplies
-//        the initial-guess error)] [--source_normals K]   (variants, exploration)
+//        the initial-guess error)] [--source_normals K] [--visibility TAU (refuse
+//        matches to source points hidden behind the target's range image)]
+//        (variants, exploration)
 // LISFM_COV_DEBUG=1 prints per-pair diagnostics of every Bayesian run;
 // LISFM_COV_COST=1 the robust cost at the truth and at the estimate; LISFM_COV_JACK=1
 // the per-axis error and standard deviations of the jackknife and the posterior.
@@ -256,6 +258,58 @@ std::string g_kernel;          // --kernel (exploration; empty: the bench defaul
 double g_kernel_scale = -1;    // --kernel_scale (exploration)
 double g_max_corr = -1;        // --max_corr (exploration)
 
+// Exploration (session 7, --visibility TAU): a target whose matches are refused to
+// source points the target sensor could not have seen: behind (by more than TAU +
+// 2 % of the range) the nearest target point in their direction of a spherical range
+// image of the target (0.5 deg azimuth x 1 deg elevation bins; sensor at the origin).
+class VisibilityGatedTarget : public IcpTarget {
+ public:
+  VisibilityGatedTarget(const KdTreeTarget& base, double tau_m)
+      : base_(base), tau_(static_cast<float>(tau_m)), image_(kAz * kEl, 0.f) {
+    for (const Eigen::Vector3f& q : base.tree().points()) {
+      const int b = Bin(q);
+      if (b < 0) continue;
+      const float r = q.norm();
+      if (image_[b] == 0.f || r < image_[b]) image_[b] = r;
+    }
+  }
+  bool Match(const Eigen::Vector3f& p, const Eigen::Vector3f& n, const MatchCriteria& c,
+             Eigen::Vector3f* q, Eigen::Vector3f* nq) const override {
+    return Visible(p) && base_.Match(p, n, c, q, nq);
+  }
+  size_t size() const override { return base_.size(); }
+  bool MatchWithHint(const Eigen::Vector3f& p, const Eigen::Vector3f& n, const MatchCriteria& c,
+                     Eigen::Vector3f* q, Eigen::Vector3f* nq, uint32_t* hint) const override {
+    return Visible(p) && base_.MatchWithHint(p, n, c, q, nq, hint);
+  }
+  bool MatchTracked(const Eigen::Vector3f& p, const Eigen::Vector3f& n, const MatchCriteria& c,
+                    Eigen::Vector3f* q, Eigen::Vector3f* nq, MatchState* state) const override {
+    return Visible(p) && base_.MatchTracked(p, n, c, q, nq, state);
+  }
+
+ private:
+  static constexpr int kAz = 720, kEl = 40;  // 0.5 deg x 1 deg, elevation -20..+20 deg
+  static int Bin(const Eigen::Vector3f& p) {
+    const float r = p.norm();
+    if (!(r > 0)) return -1;
+    const float az = std::atan2(p.y(), p.x()) * 180.f / static_cast<float>(M_PI);  // -180..180
+    const float el = std::asin(p.z() / r) * 180.f / static_cast<float>(M_PI);
+    const int a = std::clamp(static_cast<int>((az + 180.f) * 2.f), 0, kAz - 1);
+    const int e = static_cast<int>(std::floor(el + 20.f));
+    if (e < 0 || e >= kEl) return -1;
+    return e * kAz + a;
+  }
+  bool Visible(const Eigen::Vector3f& p) const {
+    const int b = Bin(p);
+    if (b < 0 || image_[b] == 0.f) return true;
+    return p.norm() <= image_[b] * 1.02f + tau_;
+  }
+  const KdTreeTarget& base_;
+  float tau_;
+  std::vector<float> image_;
+};
+double g_visibility = 0;  // --visibility TAU (exploration)
+
 // The ICP of the closed forms and of the previous noise models (Huber 0.1 m, as
 // in the real-data benchmark).
 IcpOptions BenchIcpOptions() {
@@ -357,7 +411,12 @@ MethodRun RunBayesian(const std::vector<PreparedPair>& pairs, const BayesConfig&
       b.prior_sigma_translation_m = sim_options.init_sigma_translation_m;
     }
     b.sgld.seed = 1000 + k;
-    const KdTreeTarget& target = config.new_default ? *pairs[k].target_bayes : *pairs[k].target;
+    const KdTreeTarget& kd_target = config.new_default ? *pairs[k].target_bayes : *pairs[k].target;
+    std::unique_ptr<VisibilityGatedTarget> gated;
+    if (config.new_default && g_visibility > 0) {
+      gated = std::make_unique<VisibilityGatedTarget>(kd_target, g_visibility);
+    }
+    const IcpTarget& target = gated ? static_cast<const IcpTarget&>(*gated) : kd_target;
     const auto t0 = Clock::now();
     if (config.old_model_a > 0) {
       const IcpResult icp = RegisterPointToPlane(pairs[k].source, target, pairs[k].initial, b.icp);
@@ -622,6 +681,8 @@ int Main(int argc, char** argv) {
       g_max_corr = std::atof(argv[++i]);
     } else if (std::strcmp(argv[i], "--source_normals") == 0 && i + 1 < argc) {
       g_source_normals = std::atoi(argv[++i]);
+    } else if (std::strcmp(argv[i], "--visibility") == 0 && i + 1 < argc) {
+      g_visibility = std::atof(argv[++i]);
     } else if (std::strcmp(argv[i], "--refine") == 0 && i + 1 < argc) {
       g_refine = std::atof(argv[++i]);
     } else if (std::strcmp(argv[i], "--init_scale") == 0 && i + 1 < argc) {
