@@ -58,6 +58,7 @@
 //        default's refine_max_correspondence_distance_m)] [--init_scale F (multiplies
 //        the initial-guess error)] [--source_normals K] [--visibility TAU (refuse
 //        matches to source points hidden behind the target's range image)]
+//        [--patch K (FAST-LIO-style plane fits over the K nearest target points)]
 //        (variants, exploration)
 // LISFM_COV_DEBUG=1 prints per-pair diagnostics of every Bayesian run;
 // LISFM_COV_COST=1 the robust cost at the truth and at the estimate; LISFM_COV_JACK=1
@@ -75,6 +76,7 @@
 #include <vector>
 
 #include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
 
 #include "core/errors.h"
 #include "icp/bayesian_icp.h"
@@ -310,6 +312,47 @@ class VisibilityGatedTarget : public IcpTarget {
 };
 double g_visibility = 0;  // --visibility TAU (exploration)
 
+// Exploration (session 7, --patch K): FAST-LIO-style association: the K nearest
+// target points of the query (within the correspondence distance) get a plane fit
+// (PCA); no match unless every one lies within 0.1 m of that plane (FAST-LIO2's
+// test); the match is the centroid with the fitted normal (towards the sensor).
+class PatchPlaneTarget : public IcpTarget {
+ public:
+  PatchPlaneTarget(const KdTreeTarget& base, int k) : base_(base), k_(k) {}
+  bool Match(const Eigen::Vector3f& p, const Eigen::Vector3f& /*n*/, const MatchCriteria& c,
+             Eigen::Vector3f* q, Eigen::Vector3f* nq) const override {
+    uint32_t idx[32];
+    float d2[32];
+    const size_t found = base_.tree().KnnWithin(p, static_cast<size_t>(k_),
+                                                c.max_distance_m * c.max_distance_m, idx, d2);
+    if (found < static_cast<size_t>(k_)) return false;
+    const PointSet& pts = base_.tree().points();
+    Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+    for (size_t i = 0; i < found; ++i) mean += pts[idx[i]].cast<double>();
+    mean /= static_cast<double>(found);
+    Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+    for (size_t i = 0; i < found; ++i) {
+      const Eigen::Vector3d d = pts[idx[i]].cast<double>() - mean;
+      cov += d * d.transpose();
+    }
+    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(cov);
+    Eigen::Vector3d n = es.eigenvectors().col(0);
+    for (size_t i = 0; i < found; ++i) {
+      if (std::abs(n.dot(pts[idx[i]].cast<double>() - mean)) > 0.1) return false;
+    }
+    if (n.dot(-mean) < 0) n = -n;  // towards the sensor at the origin
+    *q = mean.cast<float>();
+    *nq = n.cast<float>();
+    return true;
+  }
+  size_t size() const override { return base_.size(); }
+
+ private:
+  const KdTreeTarget& base_;
+  int k_;
+};
+int g_patch = 0;  // --patch K (exploration)
+
 // The ICP of the closed forms and of the previous noise models (Huber 0.1 m, as
 // in the real-data benchmark).
 IcpOptions BenchIcpOptions() {
@@ -416,7 +459,11 @@ MethodRun RunBayesian(const std::vector<PreparedPair>& pairs, const BayesConfig&
     if (config.new_default && g_visibility > 0) {
       gated = std::make_unique<VisibilityGatedTarget>(kd_target, g_visibility);
     }
-    const IcpTarget& target = gated ? static_cast<const IcpTarget&>(*gated) : kd_target;
+    std::unique_ptr<PatchPlaneTarget> patch;
+    if (config.new_default && g_patch > 0) patch = std::make_unique<PatchPlaneTarget>(kd_target, g_patch);
+    const IcpTarget& target = patch   ? static_cast<const IcpTarget&>(*patch)
+                              : gated ? static_cast<const IcpTarget&>(*gated)
+                                      : kd_target;
     const auto t0 = Clock::now();
     if (config.old_model_a > 0) {
       const IcpResult icp = RegisterPointToPlane(pairs[k].source, target, pairs[k].initial, b.icp);
@@ -681,6 +728,8 @@ int Main(int argc, char** argv) {
       g_max_corr = std::atof(argv[++i]);
     } else if (std::strcmp(argv[i], "--source_normals") == 0 && i + 1 < argc) {
       g_source_normals = std::atoi(argv[++i]);
+    } else if (std::strcmp(argv[i], "--patch") == 0 && i + 1 < argc) {
+      g_patch = std::atoi(argv[++i]);
     } else if (std::strcmp(argv[i], "--visibility") == 0 && i + 1 < argc) {
       g_visibility = std::atof(argv[++i]);
     } else if (std::strcmp(argv[i], "--refine") == 0 && i + 1 < argc) {
