@@ -103,6 +103,15 @@ IcpOptions BayesianDefaultIcpOptions() {
   return options;
 }
 
+IcpOptions BayesianIcpOptions::LikelihoodAssociation() const {
+  IcpOptions association = icp;
+  if (refine_max_correspondence_distance_m > 0) {
+    association.max_correspondence_distance_m =
+        std::min(icp.max_correspondence_distance_m, refine_max_correspondence_distance_m);
+  }
+  return association;
+}
+
 bool BayesianIcpOptions::Check() const {
   return icp.Check() && normal_neighbors >= 3 && sgld.Check() && noise_sigma_m >= 0 && noise_sigma_scale > 0 &&
          correlation_length_m >= 0 && num_correlation_cells >= 0 && num_correlation_cells != 1 &&
@@ -249,10 +258,8 @@ BayesianIcpResult RegisterBayesian(const PointSet& source,
   // The likelihood's association: the ICP's, with the correspondence distance
   // narrowed to refine_max_correspondence_distance_m once the ICP has converged
   // (the ICP estimate is refined with it first, so the chain starts at its mode).
-  IcpOptions association = options.icp;
-  if (options.refine_max_correspondence_distance_m > 0 &&
-      options.refine_max_correspondence_distance_m < options.icp.max_correspondence_distance_m) {
-    association.max_correspondence_distance_m = options.refine_max_correspondence_distance_m;
+  const IcpOptions association = options.LikelihoodAssociation();
+  if (association.max_correspondence_distance_m < options.icp.max_correspondence_distance_m) {
     IcpResult refined = RegisterPointToPlane(source, target, result.icp.target_from_source,
                                              association, source_normals);
     refined.iterations += result.icp.iterations;

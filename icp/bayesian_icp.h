@@ -270,6 +270,9 @@ struct BayesianIcpOptions {
   // not better (see the session-7 note above; the scale 1.262 is fitted without it).
   double refine_max_correspondence_distance_m = 0.0;
   bool Check() const;
+  // The association of the likelihood (sandwich and chain): icp, with the
+  // correspondence distance narrowed by refine_max_correspondence_distance_m.
+  IcpOptions LikelihoodAssociation() const;
 };
 
 struct BayesianIcpResult {

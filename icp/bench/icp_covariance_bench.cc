@@ -76,7 +76,6 @@
 #include <vector>
 
 #include <Eigen/Cholesky>
-#include <Eigen/Eigenvalues>
 
 #include "core/errors.h"
 #include "icp/bayesian_icp.h"
@@ -219,11 +218,12 @@ std::vector<PreparedPair> Prepare(const std::string& type, int count, uint32_t s
   const double target_voxel = g_target_voxel >= 0 ? g_target_voxel : kTargetVoxel;
   for (const test::SimScanPair& p : pairs) {
     PreparedPair q;
-    q.source = Downsample(FinitePointsOf(p.source), source_voxel);
+    const PointSet source_points = FinitePointsOf(p.source);
+    q.source = Downsample(source_points, source_voxel);
     if (g_source_normals > 0) {
       // Normal of each source point: that of its nearest point of the source at the
       // target's voxel size (normals of g_source_normals neighbours), planarity >= 0.1.
-      const KdTree fine(Downsample(FinitePointsOf(p.source), kTargetVoxel));
+      const KdTree fine(Downsample(source_points, kTargetVoxel));
       const Normals fn = EstimateNormals(fine, NormalOptions{g_source_normals, 10 * kTargetVoxel});
       q.source_normals.resize(q.source.size(), Eigen::Vector3f::Zero());
       for (size_t i = 0; i < q.source.size(); ++i) {
@@ -326,19 +326,16 @@ class PatchPlaneTarget : public IcpTarget {
     const size_t found = base_.tree().KnnWithin(p, static_cast<size_t>(k_),
                                                 c.max_distance_m * c.max_distance_m, idx, d2);
     if (found < static_cast<size_t>(k_)) return false;
-    const PointSet& pts = base_.tree().points();
+    std::vector<Eigen::Vector3d> patch(found);
     Eigen::Vector3d mean = Eigen::Vector3d::Zero();
-    for (size_t i = 0; i < found; ++i) mean += pts[idx[i]].cast<double>();
-    mean /= static_cast<double>(found);
-    Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
     for (size_t i = 0; i < found; ++i) {
-      const Eigen::Vector3d d = pts[idx[i]].cast<double>() - mean;
-      cov += d * d.transpose();
+      patch[i] = base_.tree().points()[idx[i]].cast<double>();
+      mean += patch[i];
     }
-    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(cov);
-    Eigen::Vector3d n = es.eigenvectors().col(0);
-    for (size_t i = 0; i < found; ++i) {
-      if (std::abs(n.dot(pts[idx[i]].cast<double>() - mean)) > 0.1) return false;
+    mean /= static_cast<double>(found);
+    Eigen::Vector3d n = FitPlane(patch).eigenvectors.col(0);
+    for (const Eigen::Vector3d& x : patch) {
+      if (std::abs(n.dot(x - mean)) > 0.1) return false;
     }
     if (n.dot(-mean) < 0) n = -n;  // towards the sensor at the origin
     *q = mean.cast<float>();
@@ -476,6 +473,7 @@ MethodRun RunBayesian(const std::vector<PreparedPair>& pairs, const BayesConfig&
     if (inflation != nullptr) inflation->push_back(r.variance_inflation);
     run.samples.push_back({r.posterior.mean, r.posterior.covariance, pairs[k].truth});
     if (std::getenv("LISFM_COV_COST") != nullptr) {  // robust cost at the truth and at the estimate
+      const RobustKernel kernel = RobustKernelFromString(b.icp.kernel);
       auto cost = [&](const SE3& T, size_t* n, Eigen::Vector3d* mean_res_n) {
         const MatchCriteria mc{static_cast<float>(b.icp.max_correspondence_distance_m), 0.f,
                                static_cast<float>(b.icp.min_planarity)};
@@ -489,7 +487,7 @@ MethodRun RunBayesian(const std::vector<PreparedPair>& pairs, const BayesConfig&
           const Eigen::Vector3f pt = R * p + t;
           if (!target.Match(pt, Eigen::Vector3f::Zero(), mc, &q, &nq)) continue;
           const double r = nq.dot(pt - q);
-          c += RobustLoss(RobustKernelFromString(b.icp.kernel), r, b.icp.kernel_scale_m);
+          c += RobustLoss(kernel, r, b.icp.kernel_scale_m);
           *mean_res_n += (r * nq).cast<double>();
           ++*n;
         }
@@ -504,13 +502,8 @@ MethodRun RunBayesian(const std::vector<PreparedPair>& pairs, const BayesConfig&
                   k, 1e3 * e.tail<3>().norm(), c_truth, n_truth, c_est, n_est, rn_truth.x(), rn_truth.y(), rn_truth.z());
     }
     if (std::getenv("LISFM_COV_JACK") != nullptr) {  // per-axis sd: jackknife, Laplace, posterior
-      IcpOptions assoc = b.icp;
-      if (b.refine_max_correspondence_distance_m > 0) {
-        assoc.max_correspondence_distance_m =
-            std::min(assoc.max_correspondence_distance_m, b.refine_max_correspondence_distance_m);
-      }
       const ClusterSandwich s = ComputeClusterSandwich(
-          pairs[k].source, target, r.icp.target_from_source, assoc,
+          pairs[k].source, target, r.icp.target_from_source, b.LikelihoodAssociation(),
           CellSizeForClusterCount(pairs[k].source, b.num_correlation_cells), {}, nullptr, nullptr,
           b.jackknife_leverage_power);
       const Vec6 e = (r.posterior.mean.Inverse() * pairs[k].truth).Log();
