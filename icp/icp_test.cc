@@ -184,6 +184,30 @@ TEST(RegisterPointToPlane, InnerIterationsKeepTheFixedPoint) {
   EXPECT_LT((inner.hessian - fresh).norm(), 1e-3 * fresh.norm());
 }
 
+// The coarse-to-fine levels only change the path: with tight convergence
+// thresholds the run with both coarse levels (6000 source points: 750 at 1/8, 1500
+// at 1/4, both >= coarse_min_points 600) and the run without any (coarse_min_points
+// above the point count) reach the same estimate.
+TEST(RegisterPointToPlane, CoarseLevelsKeepTheFixedPoint) {
+  const PointSet target = test::SampleBoxRoom(kRoom, 12000, 0.005, test::Rng());
+  const SE3 truth(so3::Exp(Vec3(0.08, -0.1, 0.12)), Vec3(0.35, -0.2, 0.15));
+  const PointSet source =
+      test::Transformed(test::SampleBoxRoom(kRoom, 6000, 0.005, test::Rng()), truth.Inverse());
+  const KdTreeTarget model(target, NormalOptions());
+  IcpOptions options;
+  options.max_iterations = 200;
+  options.convergence_rotation_rad = 1e-7;
+  options.convergence_translation_m = 1e-7;
+  ASSERT_EQ(options.coarse_min_points, 600);
+  const IcpResult coarse = RegisterPointToPlane(source, model, SE3(), options);
+  options.coarse_min_points = 100000;
+  const IcpResult flat = RegisterPointToPlane(source, model, SE3(), options);
+  ASSERT_TRUE(coarse.converged) << coarse.message;
+  ASSERT_TRUE(flat.converged) << flat.message;
+  EXPECT_TRUE(test::PosesNear(coarse.target_from_source, flat.target_from_source, 1e-6, 1e-6));
+  EXPECT_TRUE(test::PosesNear(coarse.target_from_source, truth, 2e-3, 5e-3));  // 5 mm noise
+}
+
 // Projective association on rendered depth maps of a room: the source camera is
 // displaced by a known pose. Point-to-plane is exact on planes, but nearest-pixel
 // matching near the room's edges pairs a few points with the adjacent wall's
@@ -285,6 +309,9 @@ TEST(RegisterPointToPlane, BadInputsThrow) {
   // Bad options are programming errors.
   IcpOptions bad;
   bad.max_iterations = 0;
+  EXPECT_THROW(RegisterPointToPlane(room, model, SE3(), bad), InternalError);
+  bad = IcpOptions();
+  bad.coarse_min_points = 0;
   EXPECT_THROW(RegisterPointToPlane(room, model, SE3(), bad), InternalError);
   EXPECT_THROW(RobustKernelFromString("tukey"), UsageError);
 }
