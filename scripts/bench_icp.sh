@@ -13,5 +13,12 @@ cmake -S "$LISFM_ROOT" -B "$LISFM_BUILD_DIR" -DCMAKE_BUILD_TYPE=Release \
   -DLISFM_BENCHMARKS_ENABLED=ON >"$LISFM_BUILD_DIR/cmake.log" 2>&1 \
   || { cat "$LISFM_BUILD_DIR/cmake.log"; exit 1; }
 cmake --build "$LISFM_BUILD_DIR" --target lisfm_icp_bench -j"$LISFM_JOBS"
-echo "CPU: $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | xargs), $(nproc) threads; $(uptime)"
+# The methods run interleaved (every round runs each once). PCL and Open3D use
+# OpenMP, whose idle worker threads spin by default for a while after each
+# parallel region: on 2 cores they then steal the next method's cores (our whole
+# process measured 20-40 % slower right after a PCL / Open3D run). Passive waiting
+# removes that cross-library artefact; PCL's own times are unchanged by it
+# (docs/BENCHMARKS.md, ICP, seventh speed round). Set OMP_WAIT_POLICY to override.
+export OMP_WAIT_POLICY="${OMP_WAIT_POLICY:-passive}"
+echo "CPU: $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | xargs), $(nproc) threads; $(uptime); OMP_WAIT_POLICY=$OMP_WAIT_POLICY"
 "$LISFM_BUILD_DIR/icp/lisfm_icp_bench" "$LISFM_SHARED_DATA" "$REPEATS" --knn --stages

@@ -8,13 +8,17 @@
 // times the stages one after the other.
 // `--knn` compares lisfm's KD-tree with nanoflann and FLANN (exact, one thread).
 //
-// Times are medians over `repeats` runs (whole process and registration alone);
-// the errors are of the last run. The Bayesian time is ICP + SGLD from the same
+// Times are medians over `repeats` rounds (whole process and registration alone),
+// each round running every method once (interleaved, session 8); the errors are of
+// the last round. The Bayesian time is ICP + SGLD from the same
 // (lazily normal-estimated) target.
 // `--stages` first prints the stage timings of ours (load, voxel grids, tree,
 // registration, iterations).
 // `--only_lisfm` runs only our point-to-plane (quick accuracy/timing checks).
-// Usage: lisfm_icp_bench DATA_DIR [repeats] [--knn] [--stages] [--only_lisfm]
+// `--coarse_ab N` compares our whole process at IcpOptions::coarse_min_points N and
+// at the library default, alternating the two in each repeat (one process, so that
+// load drifts hit both alike), and exits.
+// Usage: lisfm_icp_bench DATA_DIR [repeats] [--knn] [--stages] [--only_lisfm] [--coarse_ab N]
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
@@ -76,7 +80,8 @@ void Errors(const Mat4& T, const Mat4& ref, double* rot_deg, double* trans_m) {
   *trans_m = (T.topRightCorner<3, 1>() - ref.topRightCorner<3, 1>()).norm();
 }
 
-Outcome RunOurs(const Pair& p, bool bayesian, double* bayes_ms, double* closed_ms) {
+Outcome RunOurs(const Pair& p, bool bayesian, double* bayes_ms, double* closed_ms,
+               int coarse_min_points = IcpOptions().coarse_min_points) {
   const auto t0 = Clock::now();
   // The source chain (load, voxel grid) and the target chain (load, voxel grid,
   // tree) are independent: one task each, so that both cores work (the
@@ -92,6 +97,7 @@ Outcome RunOurs(const Pair& p, bool bayesian, double* bayes_ms, double* closed_m
       });
   const KdTreeTarget& tgt = *tgt_ptr;
   IcpOptions o;
+  o.coarse_min_points = coarse_min_points;
   o.max_correspondence_distance_m = p.max_distance;
   o.kernel_scale_m = p.kernel_scale;
   const auto t_reg = Clock::now();
@@ -399,13 +405,16 @@ void KnnComparison(const std::string& dir) {
 int main(int argc, char** argv) {
   using namespace lisfm;
   if (argc < 2) {
-    std::fprintf(stderr, "usage: lisfm_icp_bench DATA_DIR [repeats] [--knn] [--stages] [--only_lisfm]\n");
+    std::fprintf(stderr, "usage: lisfm_icp_bench DATA_DIR [repeats] [--knn] [--stages] [--only_lisfm] "
+                         "[--coarse_ab N]\n");
     return 2;
   }
   const std::string dir = argv[1];
   const int repeats = argc > 2 && argv[2][0] != '-' ? std::stoi(argv[2]) : 3;
   bool knn = false, stages = false, only_lisfm = false;
+  int coarse_ab = 0;
   for (int i = 2; i < argc; ++i) {
+    if (std::string(argv[i]) == "--coarse_ab" && i + 1 < argc) coarse_ab = std::stoi(argv[i + 1]);
     only_lisfm = only_lisfm || std::string(argv[i]) == "--only_lisfm";
     knn = knn || std::string(argv[i]) == "--knn";
     stages = stages || std::string(argv[i]) == "--stages";
@@ -457,6 +466,36 @@ int main(int argc, char** argv) {
     for (const Pair& p : pairs) OurStages(p, repeats);
     std::printf("\n");
   }
+  if (coarse_ab > 0) {
+    const int def = IcpOptions().coarse_min_points;
+    std::printf("| pair | coarse_min_points %d: whole / registration (ms) | default %d | speed-up | "
+                "rot / trans err (%d) | rot / trans err (%d) |\n|---|---|---|---|---|---|\n",
+                coarse_ab, def, coarse_ab, def);
+    double sum_a = 0, sum_b = 0;
+    for (const Pair& p : pairs) {
+      std::vector<double> a, ra, b, rb;
+      double unused_bayes = 0, unused_closed = 0;
+      Outcome oa, ob;
+      for (int k = 0; k < repeats; ++k) {
+        oa = RunOurs(p, false, &unused_bayes, &unused_closed, coarse_ab);
+        a.push_back(oa.ms);
+        ra.push_back(oa.reg_ms);
+        ob = RunOurs(p, false, &unused_bayes, &unused_closed, def);
+        b.push_back(ob.ms);
+        rb.push_back(ob.reg_ms);
+      }
+      double rot_a, tr_a, rot_b, tr_b;
+      Errors(oa.T, p.reference, &rot_a, &tr_a);
+      Errors(ob.T, p.reference, &rot_b, &tr_b);
+      std::printf("| %s | %.1f / %.1f | %.1f / %.1f | %.2fx | %.3f deg / %.4f m | %.3f deg / %.4f m |\n",
+                  p.name.c_str(), Median(a), Median(ra), Median(b), Median(rb), Median(a) / Median(b),
+                  rot_a, tr_a, rot_b, tr_b);
+      sum_a += Median(a);
+      sum_b += Median(b);
+    }
+    std::printf("sum of the medians: %.1f / %.1f ms (%.2fx)\n", sum_a, sum_b, sum_a / sum_b);
+    return 0;
+  }
   std::printf("| pair | method | whole process (ms) | registration alone (ms) | rot err (deg) | trans err (m) |\n|---|---|---|---|---|---|\n");
   for (const Pair& p : pairs) {
     struct Method {
@@ -475,19 +514,24 @@ int main(int argc, char** argv) {
         {"PCL GICP", [&] { return RunPclGicp(p); }},
         {"Open3D point-to-plane", [&] { return RunOpen3d(p); }},
     };
-    for (const auto& m : methods) {
-      if (only_lisfm && m.name != "lisfm point-to-plane") continue;
-      std::vector<double> times, reg_times;
-      Outcome o;
-      for (int r = 0; r < repeats; ++r) {
-        o = m.run();
-        times.push_back(o.ms);
-        reg_times.push_back(o.reg_ms);
+    // Interleaved: each round runs every method once, so that a slow spell of the
+    // shared host hits all methods of a pair alike (the ratios are what we report).
+    std::vector<std::vector<double>> times(methods.size()), reg_times(methods.size());
+    std::vector<Outcome> last(methods.size());
+    for (int r = 0; r < repeats; ++r) {
+      for (size_t m = 0; m < methods.size(); ++m) {
+        if (only_lisfm && methods[m].name != "lisfm point-to-plane") continue;
+        last[m] = methods[m].run();
+        times[m].push_back(last[m].ms);
+        reg_times[m].push_back(last[m].reg_ms);
       }
+    }
+    for (size_t m = 0; m < methods.size(); ++m) {
+      if (times[m].empty()) continue;
       double rot, trans;
-      Errors(o.T, p.reference, &rot, &trans);
-      std::printf("| %s | %s | %.1f | %.1f | %.3f | %.4f |\n", p.name.c_str(), m.name.c_str(),
-                  Median(times), Median(reg_times), rot, trans);
+      Errors(last[m].T, p.reference, &rot, &trans);
+      std::printf("| %s | %s | %.1f | %.1f | %.3f | %.4f |\n", p.name.c_str(), methods[m].name.c_str(),
+                  Median(times[m]), Median(reg_times[m]), rot, trans);
       std::fflush(stdout);
     }
     if (only_lisfm) continue;
