@@ -222,6 +222,67 @@ inline std::unique_ptr<sim::Scene> StairTowerScene(uint32_t seed, sim::WalkingRo
   return sim::Scene::FromTriangles(std::move(tris));
 }
 
+// A service corridor (a tuning scene of the covariance calibration, session 8; NOT
+// the sim's held-out "staircase" generator): 14 m long (x in [0, 14]), 2.6 m wide,
+// 2.8 m high, closed at both ends; door recesses (1 m wide, 0.15 m deep) in both
+// walls, crates and cabinets along the walls, a cable tray and a pipe under the
+// ceiling, a fire-door frame halfway (placed from `seed`). Long, narrow and sparsely
+// cluttered, so translation along it rests on the clutter and the far end walls.
+// The route walks along it about 0.4 m off the middle.
+inline std::unique_ptr<sim::Scene> CrateCorridorScene(uint32_t seed, sim::WalkingRoute* route) {
+  std::vector<sim::Triangle> tris;
+  uint32_t id = 0;
+  auto box = [&](double x0, double y0, double z0, double x1, double y1, double z1) {
+    AppendBoxTriangles(Eigen::Vector3f(x0, y0, z0), Eigen::Vector3f(x1, y1, z1), id++, &tris);
+  };
+  constexpr double kX = 14.0, kY = 2.6, kZ = 2.8, kWall = 0.2, kRecess = 0.15;
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  auto uniform = [&](double lo, double hi) { return lo + (hi - lo) * unit(rng); };
+  box(-kWall, -kWall - kRecess, -kWall, kX + kWall, kY + kWall + kRecess, 0);  // floor
+  box(-kWall, -kWall - kRecess, kZ, kX + kWall, kY + kWall + kRecess, kZ + kWall);  // ceiling
+  box(-kWall, -kRecess, 0, 0, kY + kRecess, kZ);                            // end walls
+  box(kX, -kRecess, 0, kX + kWall, kY + kRecess, kZ);
+  // Side walls with door recesses: wall segments between doors (doors 1 m wide,
+  // 2.1 m high, 0.15 m deep, every 3-5 m, independently on both sides).
+  for (int side = 0; side < 2; ++side) {
+    const double y0 = side == 0 ? -kRecess - kWall : kY, y1 = side == 0 ? 0.0 : kY + kRecess + kWall;
+    const double ry0 = side == 0 ? -kRecess : kY, ry1 = side == 0 ? 0.0 : kY + kRecess;
+    double x = 0;
+    while (x < kX) {
+      const double door = x + uniform(2.0, 4.0);
+      if (door + 1.0 > kX - 0.5) {
+        box(x, y0, 0, kX, y1, kZ);
+        break;
+      }
+      box(x, y0, 0, door, y1, kZ);                                    // wall up to the door
+      box(door, side == 0 ? y0 : ry1, 0, door + 1.0, side == 0 ? -kRecess : y1, kZ);  // door leaf
+      box(door, ry0, 2.1, door + 1.0, ry1, kZ);                      // lintel
+      x = door + 1.0;
+    }
+  }
+  // Crates and cabinets along both walls.
+  for (int side = 0; side < 2; ++side) {
+    for (double x = uniform(0.3, 1.5); x < kX - 1.0; x += uniform(1.2, 3.0)) {
+      const double len = uniform(0.4, 1.0), depth = uniform(0.25, 0.5), h = uniform(0.3, 1.6);
+      if (side == 0) {
+        box(x, 0, 0, x + len, depth, h);
+      } else {
+        box(x, kY - depth, 0, x + len, kY, h);
+      }
+    }
+  }
+  box(0, 0.2, kZ - 0.35, kX, 0.6, kZ - 0.3);        // cable tray
+  box(0, kY - 0.3, kZ - 0.5, kX, kY - 0.2, kZ - 0.4);  // pipe
+  const double frame = uniform(6.0, 8.0);           // fire-door frame
+  box(frame, 0, 0, frame + 0.1, 0.15, kZ);
+  box(frame, kY - 0.15, 0, frame + 0.1, kY, kZ);
+  box(frame, 0, 2.2, frame + 0.1, kY, kZ);
+  route->closed = false;
+  route->waypoints = {{1.0, 0.9, 1.4}, {6.5, 1.7, 1.4}, {13.0, 0.9, 1.4}};
+  return sim::Scene::FromTriangles(std::move(tris));
+}
+
 // A straight corridor (width x height, `length` long along x, centred at the
 // origin, floor at z = 0) without end walls within LiDAR range when length > 240 m:
 // translation along x is unobservable (the degenerate case).

@@ -8,7 +8,9 @@
 // and a 2.5 m ceiling; until session 5 the default office alone), from session 7 a
 // stair tower (test::StairTowerScene: a 6 x 4.4 m shaft of three storeys with a
 // switchback stair around an open well; a tuning check, reported with the tuning
-// scenes but not pooled in the scale fit), hall and
+// scenes but not pooled in the scale fit), from session 8 a crate corridor
+// (test::CrateCorridorScene: 14 x 2.6 m, door recesses, crates, cable tray; a second
+// tuning check of the same kind), hall and
 // staircase (held out; the staircase is the narrow, LiDAR-degenerate stairwell
 // with corridors), plus a held-out straight corridor without end walls in range
 // (translation along it unobservable: the degenerate case). For each pair: point-to-plane ICP, its closed-form covariance
@@ -48,7 +50,8 @@
 // adopted). A new try needs new seeds).
 // Usage: lisfm_icp_covariance_bench [pairs_per_scene=100] [--fresh H S]
 //        [--cells G] [--scale C (skip the fit)] [--tune_only] [--tune_grid] [--timing]
-//        [--tune_scene S1,S2,... (office | office_open_plan | office_narrow | stair_tower)]
+//        [--tune_scene S1,S2,... (office | office_open_plan | office_narrow | stair_tower |
+//        crate_corridor)]
 //        [--plane | --no_plane] [--block | --no_block] [--plane_weight A]
 //        [--max_tilt T] [--floor F] [--office_seed S] [--iterations N]
 //        [--normal_k K (the new default's target normals)] [--min_planarity P]
@@ -56,7 +59,8 @@
 //        [--leverage_power P] [--range_sigma M] [--source_voxel M] [--target_voxel M]
 //        [--voxel_nearest] [--prestage] [--target_mean N] [--refine M (the new
 //        default's refine_max_correspondence_distance_m)] [--init_scale F (multiplies
-//        the initial-guess error)] [--source_normals K] [--visibility TAU (refuse
+//        the initial-guess error)] [--source_normals K] [--normal_angle DEG (with
+//        --source_normals: the new default's max_normal_angle_deg)] [--visibility TAU (refuse
 //        matches to source points hidden behind the target's range image)]
 //        [--patch K (FAST-LIO-style plane fits over the K nearest target points)]
 //        (variants, exploration)
@@ -167,7 +171,8 @@ std::vector<PreparedPair> Prepare(const std::string& type, int count, uint32_t s
   const auto t0 = Clock::now();
   const bool open_plan = type == "office_open_plan", narrow = type == "office_narrow";
   sim::SceneOptions scene_options =
-      sim::DefaultSceneOptions(type == "corridor" || type == "stair_tower" || open_plan || narrow
+      sim::DefaultSceneOptions(type == "corridor" || type == "stair_tower" ||
+                                       type == "crate_corridor" || open_plan || narrow
                                    ? "office"
                                    : type);
   if (open_plan) {
@@ -197,13 +202,15 @@ std::vector<PreparedPair> Prepare(const std::string& type, int count, uint32_t s
     std::printf("note: default %s scene rejected (%s); using width 6 m\n", type.c_str(), e.what());
     scene_options.width = 6.0;
   }
-  const bool corridor = type == "corridor", stair_tower = type == "stair_tower";
+  const bool corridor = type == "corridor", stair_tower = type == "stair_tower",
+             crate_corridor = type == "crate_corridor";
   sim::WalkingRoute route;
   const std::unique_ptr<sim::Scene> scene =
       corridor ? test::CorridorScene(300, 3, 3)
       : stair_tower ? test::StairTowerScene(1, &route)  // session 7 tuning scene
+      : crate_corridor ? test::CrateCorridorScene(1, &route)  // session 8 tuning scene
                     : sim::Scene::Generate(scene_options);
-  if (!corridor && !stair_tower) route = scene->route();
+  if (!corridor && !stair_tower && !crate_corridor) route = scene->route();
   test::SimScanPairOptions sim_options;
   if (g_range_sigma >= 0) sim_options.range_sigma_m = g_range_sigma;
   if (g_init_scale >= 0) {
@@ -258,6 +265,7 @@ double g_leverage_power = -1;  // --leverage_power (exploration; < 0: the librar
 double g_min_planarity = -1;  // --min_planarity (exploration; < 0: the library's)
 std::string g_kernel;          // --kernel (exploration; empty: the bench default)
 double g_kernel_scale = -1;    // --kernel_scale (exploration)
+double g_normal_angle = -1;    // --normal_angle (exploration; with --source_normals)
 double g_max_corr = -1;        // --max_corr (exploration)
 
 // Exploration (session 7, --visibility TAU): a target whose matches are refused to
@@ -367,6 +375,7 @@ IcpOptions NewDefaultIcpOptions() {
   if (!g_kernel.empty()) o.kernel = g_kernel;
   if (g_kernel_scale > 0) o.kernel_scale_m = g_kernel_scale;
   if (g_max_corr > 0) o.max_correspondence_distance_m = g_max_corr;
+  if (g_normal_angle > 0) o.max_normal_angle_deg = g_normal_angle;
   return o;
 }
 
@@ -719,6 +728,8 @@ int Main(int argc, char** argv) {
       g_kernel_scale = std::atof(argv[++i]);
     } else if (std::strcmp(argv[i], "--max_corr") == 0 && i + 1 < argc) {
       g_max_corr = std::atof(argv[++i]);
+    } else if (std::strcmp(argv[i], "--normal_angle") == 0 && i + 1 < argc) {
+      g_normal_angle = std::atof(argv[++i]);
     } else if (std::strcmp(argv[i], "--source_normals") == 0 && i + 1 < argc) {
       g_source_normals = std::atoi(argv[++i]);
     } else if (std::strcmp(argv[i], "--patch") == 0 && i + 1 < argc) {
@@ -787,6 +798,7 @@ int Main(int argc, char** argv) {
   // the tuning scenes, before any held-out scene is simulated.
   if (g_tune_scene.empty()) {
     add_set("stair_tower", office_seed, "stair tower (tuning check, not in the scale fit)", kTuningCheck);
+    add_set("crate_corridor", office_seed, "crate corridor (tuning check, not in the scale fit)", kTuningCheck);
   }
   const size_t num_prepared_first = sets.size();
   add_set("hall", 12, "hall (held out, seed 12)", kHeldOut);
