@@ -150,16 +150,32 @@ TEST(KdTreeTarget, MatchTrackedEqualsMatch) {
 // different approach), with no more associations when re-solving. The returned
 // Hessian (from the last association's matches) equals one recomputed from fresh
 // matches at the estimate to 1e-3 relative.
-TEST(RegisterPointToPlane, InnerIterationsKeepTheFixedPoint) {
-  const PointSet target = test::SampleBoxRoom(kRoom, 3000, 0.005, test::Rng());
-  const SE3 truth(so3::Exp(Vec3(0.1, -0.12, 0.15)), Vec3(0.4, -0.25, 0.2));
-  const PointSet source =
-      test::Transformed(test::SampleBoxRoom(kRoom, 1500, 0.005, test::Rng()), truth.Inverse());
-  const KdTreeTarget model(target, NormalOptions());
+// The room sampled twice with 5 mm noise: a target, and a source displaced by truth.
+struct NoisyRoomPair {
+  PointSet target, source;
+};
+NoisyRoomPair SampleNoisyRoomPair(int target_points, int source_points, const SE3& truth) {
+  NoisyRoomPair pair;
+  pair.target = test::SampleBoxRoom(kRoom, target_points, 0.005, test::Rng());
+  pair.source = test::Transformed(test::SampleBoxRoom(kRoom, source_points, 0.005, test::Rng()),
+                                  truth.Inverse());
+  return pair;
+}
+
+// Up to 200 associations, converged when a step is below `tolerance` (rad and m).
+IcpOptions TightOptions(double tolerance) {
   IcpOptions options;
   options.max_iterations = 200;
-  options.convergence_rotation_rad = 1e-6;
-  options.convergence_translation_m = 1e-6;
+  options.convergence_rotation_rad = tolerance;
+  options.convergence_translation_m = tolerance;
+  return options;
+}
+
+TEST(RegisterPointToPlane, InnerIterationsKeepTheFixedPoint) {
+  const SE3 truth(so3::Exp(Vec3(0.1, -0.12, 0.15)), Vec3(0.4, -0.25, 0.2));
+  const auto [target, source] = SampleNoisyRoomPair(3000, 1500, truth);
+  const KdTreeTarget model(target, NormalOptions());
+  IcpOptions options = TightOptions(1e-6);
   options.max_inner_iterations = 0;
   const IcpResult plain = RegisterPointToPlane(source, model, SE3(), options);
   options.max_inner_iterations = 5;
@@ -189,15 +205,10 @@ TEST(RegisterPointToPlane, InnerIterationsKeepTheFixedPoint) {
 // at 1/4, both >= coarse_min_points 600) and the run without any (coarse_min_points
 // above the point count) reach the same estimate.
 TEST(RegisterPointToPlane, CoarseLevelsKeepTheFixedPoint) {
-  const PointSet target = test::SampleBoxRoom(kRoom, 12000, 0.005, test::Rng());
   const SE3 truth(so3::Exp(Vec3(0.08, -0.1, 0.12)), Vec3(0.35, -0.2, 0.15));
-  const PointSet source =
-      test::Transformed(test::SampleBoxRoom(kRoom, 6000, 0.005, test::Rng()), truth.Inverse());
+  const auto [target, source] = SampleNoisyRoomPair(12000, 6000, truth);
   const KdTreeTarget model(target, NormalOptions());
-  IcpOptions options;
-  options.max_iterations = 200;
-  options.convergence_rotation_rad = 1e-7;
-  options.convergence_translation_m = 1e-7;
+  IcpOptions options = TightOptions(1e-7);
   ASSERT_EQ(options.coarse_min_points, 600);
   const IcpResult coarse = RegisterPointToPlane(source, model, SE3(), options);
   options.coarse_min_points = 100000;
