@@ -222,7 +222,8 @@ bool IcpOptions::Check() const {
          max_normal_angle_deg > 0 && max_normal_angle_deg <= 180 && min_planarity >= 0 &&
          min_planarity <= 1 && kernel_scale_m > 0 && convergence_rotation_rad >= 0 &&
          convergence_translation_m >= 0 && min_inliers >= 6 && degeneracy_threshold >= 0 &&
-         coarse_stride >= 1 && coarse_min_points >= 1 && max_inner_iterations >= 0;
+         coarse_stride >= 1 && coarse_levels >= 0 && coarse_levels <= 8 &&
+         coarse_min_points >= 1 && max_inner_iterations >= 0;
 }
 
 // ---- targets ----
@@ -534,22 +535,24 @@ IcpResult RegisterPointToPlane(const PointSet& source,
   // once a step falls below 10x the convergence thresholds (the full set at once
   // when a subset has too few matches), and only full-set steps can end the
   // iteration.
-  // Levels: every 2k-th, then every k-th point (k = coarse_stride), each only if
-  // the subset keeps >= coarse_min_points points; then all points.
-  // Why 600 (session 8; 1200 = 100 min_inliers before): a coarse iteration far
-  // from the optimum matches mostly target points it has not matched before, and
-  // each of them costs a lazy normal (a 10-NN search and a 3x3 eigensolve). BALM
-  // full36 (9579 source points) missed the 1/8 level by 3 points under the old
-  // rule; its 8 iterations at 1/4 (2.4k points) estimated 9.6k of the run's 13.7k
-  // target normals. At 600 the same pairs converge to the same estimates, 8-26 %
-  // faster (docs/BENCHMARKS.md, ICP, seventh speed round); the simulated office
-  // pairs (4.5-7k points) are as fast as before.
+  // Levels: every 2^(L-1) k-th, ..., 2k-th, k-th point (k = coarse_stride, L =
+  // coarse_levels), each only if the subset keeps >= coarse_min_points points; then
+  // all points.
+  // Why (session 8; before: L = 2 and 1200 = 100 min_inliers points): a coarse
+  // iteration far from the optimum matches mostly target points it has not matched
+  // before, and each of them costs a lazy normal (a 10-NN search and a 3x3
+  // eigensolve), so the first iterations should use as few points as still point
+  // the step the right way. BALM full36 (9579 source points) missed the 1/8 level by
+  // 3 points under the old rule; its 8 iterations at 1/4 (2.4k points) estimated
+  // 9.6k of the run's 13.7k target normals. With 600 points and a third level the
+  // real pairs converge to the same estimates (within the convergence thresholds),
+  // up to 1.2x faster (docs/BENCHMARKS.md, ICP, seventh speed round); the simulated
+  // office pairs (4.5-7k points) are as fast as before.
   std::vector<size_t> strides;
   const size_t k = static_cast<size_t>(options.coarse_stride);
-  for (const size_t s : {2 * k, k}) {
-    if (k > 1 && source.size() / s >= static_cast<size_t>(options.coarse_min_points)) {
-      strides.push_back(s);
-    }
+  for (int j = options.coarse_levels - 1; k > 1 && j >= 0; --j) {
+    const size_t s = k << j;
+    if (source.size() / s >= static_cast<size_t>(options.coarse_min_points)) strides.push_back(s);
   }
   strides.push_back(1);
   size_t level = 0;

@@ -69,9 +69,11 @@ struct IcpOptions {
   double convergence_rotation_rad = 1e-4;    // stop when |omega| of a step is below (rad)
   double convergence_translation_m = 1e-4;   // ... and |v| is below (m)
   int min_inliers = 12;                      // fewer matches -> not converged
-  int coarse_stride = 4;                     // early iterations use every 2k-th, then every k-th source point (1 = off)
-  // A coarse level is used only when its subset keeps at least this many source
-  // points (session 8: 1200 -> 600, see icp.cc).
+  int coarse_stride = 4;                     // k: the finest coarse level uses every k-th source point (1 = off)
+  // Coarse levels at most: every 2^(L-1) k-th, ..., 2k-th, k-th source point (session 8:
+  // 2 -> 3); a level is used only when its subset keeps at least coarse_min_points
+  // source points (session 8: 1200 -> 600). See icp.cc.
+  int coarse_levels = 3;
   int coarse_min_points = 600;
   double degeneracy_threshold = 0.02;        // min/max eigenvalue ratio of the translation Hessian; a tenth of it for the scaled 6x6 (see icp.cc)
   bool Check() const;

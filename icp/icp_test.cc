@@ -201,22 +201,26 @@ TEST(RegisterPointToPlane, InnerIterationsKeepTheFixedPoint) {
 }
 
 // The coarse-to-fine levels only change the path: with tight convergence
-// thresholds the run with both coarse levels (6000 source points: 750 at 1/8, 1500
-// at 1/4, both >= coarse_min_points 600) and the run without any (coarse_min_points
-// above the point count) reach the same estimate.
+// thresholds the runs with all three coarse levels (12000 source points: 750 at
+// 1/16, 1500 at 1/8, 3000 at 1/4, all >= coarse_min_points 600), with two, and
+// without any (coarse_min_points above the point count) reach the same estimate.
 TEST(RegisterPointToPlane, CoarseLevelsKeepTheFixedPoint) {
   const SE3 truth(so3::Exp(Vec3(0.08, -0.1, 0.12)), Vec3(0.35, -0.2, 0.15));
-  const auto [target, source] = SampleNoisyRoomPair(12000, 6000, truth);
+  const auto [target, source] = SampleNoisyRoomPair(24000, 12000, truth);
   const KdTreeTarget model(target, NormalOptions());
   IcpOptions options = TightOptions(1e-7);
   ASSERT_EQ(options.coarse_min_points, 600);
-  const IcpResult coarse = RegisterPointToPlane(source, model, SE3(), options);
+  ASSERT_EQ(options.coarse_levels, 3);
+  const IcpResult three = RegisterPointToPlane(source, model, SE3(), options);
+  options.coarse_levels = 2;
+  const IcpResult two = RegisterPointToPlane(source, model, SE3(), options);
   options.coarse_min_points = 100000;
   const IcpResult flat = RegisterPointToPlane(source, model, SE3(), options);
-  ASSERT_TRUE(coarse.converged) << coarse.message;
-  ASSERT_TRUE(flat.converged) << flat.message;
-  EXPECT_TRUE(test::PosesNear(coarse.target_from_source, flat.target_from_source, 1e-6, 1e-6));
-  EXPECT_TRUE(test::PosesNear(coarse.target_from_source, truth, 2e-3, 5e-3));  // 5 mm noise
+  for (const IcpResult* r : {&three, &two, &flat}) {
+    ASSERT_TRUE(r->converged) << r->message;
+    EXPECT_TRUE(test::PosesNear(r->target_from_source, flat.target_from_source, 1e-6, 1e-6));
+  }
+  EXPECT_TRUE(test::PosesNear(three.target_from_source, truth, 2e-3, 5e-3));  // 5 mm noise
 }
 
 // Projective association on rendered depth maps of a room: the source camera is
@@ -323,6 +327,9 @@ TEST(RegisterPointToPlane, BadInputsThrow) {
   EXPECT_THROW(RegisterPointToPlane(room, model, SE3(), bad), InternalError);
   bad = IcpOptions();
   bad.coarse_min_points = 0;
+  EXPECT_THROW(RegisterPointToPlane(room, model, SE3(), bad), InternalError);
+  bad = IcpOptions();
+  bad.coarse_levels = -1;
   EXPECT_THROW(RegisterPointToPlane(room, model, SE3(), bad), InternalError);
   EXPECT_THROW(RobustKernelFromString("tukey"), UsageError);
 }
