@@ -15,10 +15,11 @@
 // `--stages` first prints the stage timings of ours (load, voxel grids, tree,
 // registration, iterations).
 // `--only_lisfm` runs only our point-to-plane (quick accuracy/timing checks).
-// `--coarse_ab N` compares our whole process at IcpOptions::coarse_min_points N and
-// at the library default, alternating the two (and which goes first) in each repeat
-// (one process, so that load drifts hit both alike), and exits.
-// Usage: lisfm_icp_bench DATA_DIR [repeats] [--knn] [--stages] [--only_lisfm] [--coarse_ab N]
+// `--ab NAME=VALUE` compares our whole process with one IcpOptions field changed
+// (coarse_min_points or coarse_levels) against the library defaults, alternating the
+// two (and which goes first) in each repeat (one process, so that load drifts hit
+// both alike), and exits.
+// Usage: lisfm_icp_bench DATA_DIR [repeats] [--knn] [--stages] [--only_lisfm] [--ab NAME=VALUE]
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
@@ -81,7 +82,7 @@ void Errors(const Mat4& T, const Mat4& ref, double* rot_deg, double* trans_m) {
 }
 
 Outcome RunOurs(const Pair& p, bool bayesian, double* bayes_ms, double* closed_ms,
-               int coarse_min_points = IcpOptions().coarse_min_points) {
+               const IcpOptions& base = IcpOptions()) {
   const auto t0 = Clock::now();
   // The source chain (load, voxel grid) and the target chain (load, voxel grid,
   // tree) are independent: one task each, so that both cores work (the
@@ -96,8 +97,7 @@ Outcome RunOurs(const Pair& p, bool bayesian, double* bayes_ms, double* closed_m
         tgt_ptr = std::make_unique<KdTreeTarget>(tgt_points, normal_options);
       });
   const KdTreeTarget& tgt = *tgt_ptr;
-  IcpOptions o;
-  o.coarse_min_points = coarse_min_points;
+  IcpOptions o = base;
   o.max_correspondence_distance_m = p.max_distance;
   o.kernel_scale_m = p.kernel_scale;
   const auto t_reg = Clock::now();
@@ -406,15 +406,15 @@ int main(int argc, char** argv) {
   using namespace lisfm;
   if (argc < 2) {
     std::fprintf(stderr, "usage: lisfm_icp_bench DATA_DIR [repeats] [--knn] [--stages] [--only_lisfm] "
-                         "[--coarse_ab N]\n");
+                         "[--ab NAME=VALUE]\n");
     return 2;
   }
   const std::string dir = argv[1];
   const int repeats = argc > 2 && argv[2][0] != '-' ? std::stoi(argv[2]) : 3;
   bool knn = false, stages = false, only_lisfm = false;
-  int coarse_ab = 0;
+  std::string ab;
   for (int i = 2; i < argc; ++i) {
-    if (std::string(argv[i]) == "--coarse_ab" && i + 1 < argc) coarse_ab = std::stoi(argv[i + 1]);
+    if (std::string(argv[i]) == "--ab" && i + 1 < argc) ab = argv[i + 1];
     only_lisfm = only_lisfm || std::string(argv[i]) == "--only_lisfm";
     knn = knn || std::string(argv[i]) == "--knn";
     stages = stages || std::string(argv[i]) == "--stages";
@@ -466,11 +466,22 @@ int main(int argc, char** argv) {
     for (const Pair& p : pairs) OurStages(p, repeats);
     std::printf("\n");
   }
-  if (coarse_ab > 0) {
-    const int def = IcpOptions().coarse_min_points;
-    std::printf("| pair | coarse_min_points %d: whole / registration (ms) | default %d | speed-up | "
+  if (!ab.empty()) {
+    const size_t eq = ab.find('=');
+    const std::string name = ab.substr(0, eq);
+    IcpOptions variant;
+    int* field = name == "coarse_min_points" ? &variant.coarse_min_points
+                 : name == "coarse_levels"   ? &variant.coarse_levels
+                                             : nullptr;
+    if (field == nullptr || eq == std::string::npos) {
+      std::fprintf(stderr, "--ab: expected coarse_min_points=N or coarse_levels=N, found '%s'\n", ab.c_str());
+      return 2;
+    }
+    const int def = *field;
+    *field = std::stoi(ab.substr(eq + 1));
+    std::printf("| pair | %s %d: whole / registration (ms) | default %d | speed-up | "
                 "rot / trans err (%d) | rot / trans err (%d) |\n|---|---|---|---|---|---|\n",
-                coarse_ab, def, coarse_ab, def);
+                name.c_str(), *field, def, *field, def);
     double sum_a = 0, sum_b = 0;
     for (const Pair& p : pairs) {
       std::vector<double> a, ra, b, rb;
@@ -480,7 +491,7 @@ int main(int argc, char** argv) {
         // Which of the two runs first alternates too (warm caches favour the second).
         for (const bool run_a : {k % 2 == 0, k % 2 != 0}) {
           Outcome& o = run_a ? oa : ob;
-          o = RunOurs(p, false, &unused_bayes, &unused_closed, run_a ? coarse_ab : def);
+          o = RunOurs(p, false, &unused_bayes, &unused_closed, run_a ? variant : IcpOptions());
           (run_a ? a : b).push_back(o.ms);
           (run_a ? ra : rb).push_back(o.reg_ms);
         }
