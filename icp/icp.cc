@@ -1,6 +1,8 @@
 #include "icp/icp.h"
 
+#include <algorithm>
 #include <cmath>
+#include <mutex>
 
 #include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
@@ -234,6 +236,42 @@ constexpr uint8_t kNormalBusy = 1;
 constexpr uint8_t kNormalReady = 2;
 }  // namespace
 
+struct KdTreeTarget::FieldOfView {
+  std::once_flag once;
+  float min_sin_elevation = -1.f, max_sin_elevation = 1.f;
+  float max_range_m = 0.f;
+};
+
+bool KdTreeTarget::InFieldOfView(const Eigen::Vector3f& point) const {
+  FieldOfView& fov = *field_of_view_;
+  std::call_once(fov.once, [&] {
+    // Elevations as sines (no trigonometry), seen from the viewpoint; the extreme
+    // 0.1 % on either side are left out (stray returns).
+    const PointSet& pts = tree_.points();
+    std::vector<float> sin_elevation;
+    sin_elevation.reserve(pts.size());
+    for (const Eigen::Vector3f& q : pts) {
+      const Eigen::Vector3f d = q - viewpoint_;
+      const float r = d.norm();
+      if (!(r > 0)) continue;
+      sin_elevation.push_back(d.z() / r);
+      fov.max_range_m = std::max(fov.max_range_m, r);
+    }
+    if (sin_elevation.empty()) return;
+    const size_t tail = sin_elevation.size() / 1000;
+    std::nth_element(sin_elevation.begin(), sin_elevation.begin() + tail, sin_elevation.end());
+    fov.min_sin_elevation = sin_elevation[tail];
+    const size_t top = sin_elevation.size() - 1 - tail;
+    std::nth_element(sin_elevation.begin(), sin_elevation.begin() + top, sin_elevation.end());
+    fov.max_sin_elevation = sin_elevation[top];
+  });
+  const Eigen::Vector3f d = point - viewpoint_;
+  const float r = d.norm();
+  if (!(r > 0) || r > fov.max_range_m) return false;
+  const float s = d.z() / r;
+  return s >= fov.min_sin_elevation && s <= fov.max_sin_elevation;
+}
+
 KdTreeTarget::KdTreeTarget(PointSet points,
                            const NormalOptions& normal_options,
                            const Eigen::Vector3f& viewpoint)
@@ -245,6 +283,7 @@ KdTreeTarget::KdTreeTarget(PointSet points,
   normals_.normals.assign(tree_.size(), Eigen::Vector3f::Zero());
   normals_.planarity.assign(tree_.size(), 0.f);
   state_ = std::make_unique<std::atomic<uint8_t>[]>(tree_.size());  // value-initialised: 0
+  field_of_view_ = std::make_unique<FieldOfView>();
 }
 
 KdTreeTarget::KdTreeTarget(PointSet points, std::vector<Eigen::Vector3f> normals)
@@ -272,6 +311,7 @@ KdTreeTarget::KdTreeTarget(PointSet points, std::vector<Eigen::Vector3f> normals
   normals_.normals = std::move(normals);
   state_ = std::make_unique<std::atomic<uint8_t>[]>(tree_.size());
   for (size_t i = 0; i < tree_.size(); ++i) state_[i].store(kNormalReady, std::memory_order_relaxed);
+  field_of_view_ = std::make_unique<FieldOfView>();
 }
 
 KdTreeTarget::~KdTreeTarget() = default;
@@ -338,6 +378,7 @@ bool KdTreeTarget::MatchWithHint(const Eigen::Vector3f& point,
                                  Eigen::Vector3f* target_point,
                                  Eigen::Vector3f* target_normal,
                                  uint32_t* hint) const {
+  if (criteria.field_of_view_gate && !InFieldOfView(point)) return false;
   // The nearest point is at most as far as the previous match: a tighter bound
   // prunes most of the tree walk once the estimate settles (same result).
   float bound = criteria.max_distance_m * criteria.max_distance_m;
@@ -359,6 +400,7 @@ bool KdTreeTarget::MatchTracked(const Eigen::Vector3f& point,
                                 Eigen::Vector3f* target_point,
                                 Eigen::Vector3f* target_normal,
                                 MatchState* state) const {
+  if (criteria.field_of_view_gate && !InFieldOfView(point)) return false;
   const float max_sq = criteria.max_distance_m * criteria.max_distance_m;
   uint32_t index = 0;
   if (state->index < tree_.size() && state->margin_m > 0 &&
@@ -446,7 +488,7 @@ LinearizationContext::LinearizationContext(const SE3& T, const IcpOptions& optio
       translation_f(T.translation().cast<float>()),
       criteria{static_cast<float>(options.max_correspondence_distance_m),
                static_cast<float>(std::cos(options.max_normal_angle_deg * kDegToRad)),
-               static_cast<float>(options.min_planarity)},
+               static_cast<float>(options.min_planarity), options.field_of_view_gate},
       kernel(RobustKernelFromString(options.kernel)),
       kernel_scale_m(options.kernel_scale_m) {}
 

@@ -171,6 +171,46 @@ IcpOptions TightOptions(double tolerance) {
   return options;
 }
 
+// IcpOptions::field_of_view_gate: a target scanned from the origin within
+// elevations of +-15 deg (a cylinder wall of radius 5 m); points the target could
+// not have seen (above its band, or beyond its farthest point) get no match with
+// the gate, the nearest point without it; points in view match the same either way.
+TEST(KdTreeTarget, FieldOfViewGate) {
+  PointSet wall;
+  for (int a = 0; a < 360; ++a) {
+    for (int e = -15; e <= 15; ++e) {
+      const double az = a * M_PI / 180.0, el = e * M_PI / 180.0;
+      wall.emplace_back(Eigen::Vector3f(static_cast<float>(5.0 * std::cos(az)),
+                                        static_cast<float>(5.0 * std::sin(az)),
+                                        static_cast<float>(5.0 * std::tan(el))));
+    }
+  }
+  const KdTreeTarget target(wall, NormalOptions());
+  MatchCriteria gated{3.f, 0.f, 0.f};
+  gated.field_of_view_gate = true;
+  const MatchCriteria open{3.f, 0.f, 0.f};
+  // In view (elevation ~5 deg, 4.9 m out): matched with and without the gate.
+  const Eigen::Vector3f in_view(4.9f, 0.02f, 0.43f);
+  // Above the band (elevation ~21 deg): the wall's top ring is within 3 m.
+  const Eigen::Vector3f above(4.6f, 0.f, 1.8f);
+  // Beyond the farthest target point (5.2 m range) but within 3 m of the wall.
+  const Eigen::Vector3f beyond(5.6f, 0.f, 0.f);
+  Eigen::Vector3f q, n, q_gated, n_gated;
+  ASSERT_TRUE(target.Match(in_view, Eigen::Vector3f::Zero(), open, &q, &n));
+  ASSERT_TRUE(target.Match(in_view, Eigen::Vector3f::Zero(), gated, &q_gated, &n_gated));
+  EXPECT_EQ(q, q_gated);
+  EXPECT_TRUE(target.Match(above, Eigen::Vector3f::Zero(), open, &q, &n));
+  EXPECT_FALSE(target.Match(above, Eigen::Vector3f::Zero(), gated, &q, &n));
+  EXPECT_TRUE(target.Match(beyond, Eigen::Vector3f::Zero(), open, &q, &n));
+  EXPECT_FALSE(target.Match(beyond, Eigen::Vector3f::Zero(), gated, &q, &n));
+  // The other entry points gate the same way.
+  uint32_t hint = IcpTarget::kNoHint;
+  EXPECT_FALSE(target.MatchWithHint(above, Eigen::Vector3f::Zero(), gated, &q, &n, &hint));
+  IcpTarget::MatchState state;
+  EXPECT_FALSE(target.MatchTracked(beyond, Eigen::Vector3f::Zero(), gated, &q, &n, &state));
+  EXPECT_TRUE(target.MatchTracked(in_view, Eigen::Vector3f::Zero(), gated, &q, &n, &state));
+}
+
 TEST(RegisterPointToPlane, InnerIterationsKeepTheFixedPoint) {
   const SE3 truth(so3::Exp(Vec3(0.1, -0.12, 0.15)), Vec3(0.4, -0.25, 0.2));
   const auto [target, source] = SampleNoisyRoomPair(3000, 1500, truth);

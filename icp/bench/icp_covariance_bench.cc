@@ -63,6 +63,7 @@
 //        --source_normals: the new default's max_normal_angle_deg)] [--visibility TAU (refuse
 //        matches to source points hidden behind the target's range image)]
 //        [--patch K (FAST-LIO-style plane fits over the K nearest target points)]
+//        [--fov_gate (the new default's IcpOptions::field_of_view_gate on; session 9)]
 //        (variants, exploration)
 // LISFM_COV_DEBUG=1 prints per-pair diagnostics of every Bayesian run;
 // LISFM_COV_COST=1 the robust cost at the truth and at the estimate; LISFM_COV_JACK=1
@@ -266,6 +267,7 @@ double g_min_planarity = -1;  // --min_planarity (exploration; < 0: the library'
 std::string g_kernel;          // --kernel (exploration; empty: the bench default)
 double g_kernel_scale = -1;    // --kernel_scale (exploration)
 double g_normal_angle = -1;    // --normal_angle (exploration; with --source_normals)
+bool g_fov_gate = false;       // --fov_gate: the new default with IcpOptions::field_of_view_gate (exploration, session 9)
 double g_max_corr = -1;        // --max_corr (exploration)
 
 // Exploration (session 7, --visibility TAU): a target whose matches are refused to
@@ -376,6 +378,7 @@ IcpOptions NewDefaultIcpOptions() {
   if (g_kernel_scale > 0) o.kernel_scale_m = g_kernel_scale;
   if (g_max_corr > 0) o.max_correspondence_distance_m = g_max_corr;
   if (g_normal_angle > 0) o.max_normal_angle_deg = g_normal_angle;
+  if (g_fov_gate) o.field_of_view_gate = true;
   return o;
 }
 
@@ -730,6 +733,8 @@ int Main(int argc, char** argv) {
       g_max_corr = std::atof(argv[++i]);
     } else if (std::strcmp(argv[i], "--normal_angle") == 0 && i + 1 < argc) {
       g_normal_angle = std::atof(argv[++i]);
+    } else if (std::strcmp(argv[i], "--fov_gate") == 0) {
+      g_fov_gate = true;
     } else if (std::strcmp(argv[i], "--source_normals") == 0 && i + 1 < argc) {
       g_source_normals = std::atoi(argv[++i]);
     } else if (std::strcmp(argv[i], "--patch") == 0 && i + 1 < argc) {
