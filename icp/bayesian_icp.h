@@ -217,6 +217,20 @@ struct BayesianIcpOptions {
   //    Clusters by normal orientation or by plane, an edge-bias covariance term and a
   //    profile check of the cost did not calibrate it (docs/BENCHMARKS.md, seventh
   //    round).
+  //  - session 9, ninth try (not adopted): the stair tower's vertical error grew with
+  //    the true vertical motion (correlation 0.59; median 5.7 mm, 77 % of one sign):
+  //    source points outside the target's vertical field of view matched the nearest
+  //    tread the target did see. IcpOptions::field_of_view_gate (no match outside
+  //    the target's elevation band and range) took the tower to 69 % / 42.3 (median
+  //    error 9.7 -> 5.3 mm) and the crate corridor to 94 % / 5.00 at the refitted
+  //    scale 1.274 (offices unchanged). Its first fresh run (seeds 122/123) aborted: a
+  //    gated ICP drifted until no point was in view; with the gate decided once per
+  //    point, FRESH seeds 132/133: 88.5 % / 7.74 / 5.70 against these defaults'
+  //    87.0 % / 7.30 / 5.63 (staircase 79.0 % / 9.98 vs 76.0 % / 9.02; hall 98.0 % /
+  //    5.51 vs 98.0 % / 5.57); seeds 12/13: 87.0 % / 7.80 vs 85.5 % / 7.76; the unit
+  //    test's 40 pairs: mean NEES 9.01 vs 8.10. More coverage, not a lower NEES, and a
+  //    user's target need not be in its sensor frame: not adopted, the gate stays an
+  //    option (off).
   //  The target (92-98 %, mean NEES 5-7 held out) is still NOT met as a
   //  whole: the hall meets it since the planarity gate; the staircase is
   //  over-confident (block mean NEES ~5 / ~6 vs 3), more than with the fifth try;

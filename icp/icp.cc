@@ -400,7 +400,10 @@ bool KdTreeTarget::MatchTracked(const Eigen::Vector3f& point,
                                 Eigen::Vector3f* target_point,
                                 Eigen::Vector3f* target_normal,
                                 MatchState* state) const {
-  if (criteria.field_of_view_gate && !InFieldOfView(point)) return false;
+  if (criteria.field_of_view_gate) {
+    if (state->in_view < 0) state->in_view = InFieldOfView(point) ? 1 : 0;
+    if (state->in_view == 0) return false;
+  }
   const float max_sq = criteria.max_distance_m * criteria.max_distance_m;
   uint32_t index = 0;
   if (state->index < tree_.size() && state->margin_m > 0 &&

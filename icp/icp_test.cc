@@ -206,9 +206,13 @@ TEST(KdTreeTarget, FieldOfViewGate) {
   // The other entry points gate the same way.
   uint32_t hint = IcpTarget::kNoHint;
   EXPECT_FALSE(target.MatchWithHint(above, Eigen::Vector3f::Zero(), gated, &q, &n, &hint));
-  IcpTarget::MatchState state;
-  EXPECT_FALSE(target.MatchTracked(beyond, Eigen::Vector3f::Zero(), gated, &q, &n, &state));
-  EXPECT_TRUE(target.MatchTracked(in_view, Eigen::Vector3f::Zero(), gated, &q, &n, &state));
+  IcpTarget::MatchState out_state, in_state;
+  EXPECT_FALSE(target.MatchTracked(beyond, Eigen::Vector3f::Zero(), gated, &q, &n, &out_state));
+  EXPECT_TRUE(target.MatchTracked(in_view, Eigen::Vector3f::Zero(), gated, &q, &n, &in_state));
+  // MatchTracked keeps its first decision for a source point: later queries of the
+  // same point are not re-gated (no drift towards poses with fewer points in view).
+  EXPECT_FALSE(target.MatchTracked(in_view, Eigen::Vector3f::Zero(), gated, &q, &n, &out_state));
+  EXPECT_TRUE(target.MatchTracked(above, Eigen::Vector3f::Zero(), gated, &q, &n, &in_state));
 }
 
 TEST(RegisterPointToPlane, InnerIterationsKeepTheFixedPoint) {

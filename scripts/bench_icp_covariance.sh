@@ -6,8 +6,9 @@
 # not in the scale fit), the hall and staircase scenes (held out) and a degenerate
 # corridor (held out); per method (closed form, Censi, cluster sandwich, Bayesian ICP:
 # old model A, i.i.d. sigma, the defaults of sessions 3-5, session 7's try with a
-# refinement within 0.2 m, the new default, and it with a prior) the coverage of the 95 %
-# ellipsoid, mean and median NEES and the time per pair. The new default (session 6:
+# refinement within 0.2 m, session 9's try with the field-of-view gate, the new
+# default, and it with a prior) the coverage of the 95 % ellipsoid, mean and median
+# NEES and the time per pair. The new default (session 6:
 # Cauchy 0.05 m association with a planarity gate of 0.1 and normals of 20
 # neighbours, 48-cell CR1 cluster-sandwich sigma + block tempering; the library's
 # defaults) has its scale re-fitted on 4 x PAIRS pairs of each tuning scene only,

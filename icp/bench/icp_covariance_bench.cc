@@ -39,14 +39,16 @@
 // with --leverage_power; --tune_grid prints a grid at scale 1, exploration only).
 // The hall, staircase and corridor pairs are simulated only after that. For
 // comparison: "old model A" (likelihood sigma = 3.15 x ICP residual sigma, session
-// 1), the session-3, -4 and -5 defaults and session 6's first try, and
-// "prior" rows that add a Gaussian prior equal to the distribution the initial
+// 1), the session-3, -4 and -5 defaults, session 7's try and session 9's try (the
+// field-of-view gate of IcpOptions, scale 1.274 fitted with it), and "prior" rows that add a Gaussian prior equal to the distribution the initial
 // guess was drawn from (2 deg / 10 cm per axis). --fresh H S adds hall / staircase
 // pairs of seeds H / S (fresh held-out sets; session 4 used 22/23 for its first
 // try and 32/33 for its second, the lead 42/43 for a third; session 5 52/53 for the
 // fourth and 62/63 for the fourth and fifth side by side, then 72/73 for the adopted
 // fifth alone; session 6 82/83 for its first try, 92/93 for its second, 102/103 for an
 // unselected run; session 7 112/113 for its try (refinement within 0.2 m, not
+// adopted); session 9 122/123 for its try (the field-of-view gate; it aborted on a
+// staircase pair, see IcpOptions::field_of_view_gate) and, fixed, 132/133 (not
 // adopted). A new try needs new seeds).
 // Usage: lisfm_icp_covariance_bench [pairs_per_scene=100] [--fresh H S]
 //        [--cells G] [--scale C (skip the fit)] [--tune_only] [--tune_grid] [--timing]
@@ -63,7 +65,7 @@
 //        --source_normals: the new default's max_normal_angle_deg)] [--visibility TAU (refuse
 //        matches to source points hidden behind the target's range image)]
 //        [--patch K (FAST-LIO-style plane fits over the K nearest target points)]
-//        [--fov_gate (the new default's IcpOptions::field_of_view_gate on; session 9)]
+//        [--fov_gate (the new default with IcpOptions::field_of_view_gate; session 9)]
 //        (variants, exploration)
 // LISFM_COV_DEBUG=1 prints per-pair diagnostics of every Bayesian run;
 // LISFM_COV_COST=1 the robust cost at the truth and at the estimate; LISFM_COV_JACK=1
@@ -423,6 +425,7 @@ struct BayesConfig {
   double min_planarity = -1;  // >= 0: overrides the new default's min_planarity (the session-5 default: 0)
   double leverage_power = 1;  // jackknife_leverage_power (CR3 until session 6); < 0: the library's
   double refine = -1;         // new default only: refine_max_correspondence_distance_m (< 0: --refine or the library's)
+  bool fov_gate = false;      // new default only: IcpOptions::field_of_view_gate on (session 9's try)
   CorrespondenceVarianceOptions variance;  // its constants
 };
 
@@ -430,6 +433,7 @@ BayesianIcpOptions ToOptions(const BayesConfig& config) {
   BayesianIcpOptions b;
   b.icp = config.new_default ? NewDefaultIcpOptions() : BenchIcpOptions();
   if (config.new_default && config.min_planarity >= 0) b.icp.min_planarity = config.min_planarity;
+  if (config.new_default && config.fov_gate) b.icp.field_of_view_gate = true;
   if (config.leverage_power >= 0) b.jackknife_leverage_power = config.leverage_power;
   if (config.new_default && config.leverage_power < 0 && g_leverage_power >= 0) {
     b.jackknife_leverage_power = g_leverage_power;
@@ -985,13 +989,16 @@ int Main(int argc, char** argv) {
   session7.cells = 48;
   session7.refine = 0.2;
   session7.scale = 1.246;
+  BayesConfig session9 = tuned;  // session-9 try (not adopted): + the field-of-view gate, 1.274
+  session9.fov_gate = true;
+  session9.scale = 1.274;
   BayesConfig old_a;
   old_a.old_model_a = 3.15;
   BayesConfig iid;  // cells of one point: heteroscedastic i.i.d. residuals, scale 1
 
   std::printf("| pairs | method | n | coverage 95 %% | mean NEES | median NEES | ms per pair |\n");
   std::printf("|---|---|---|---|---|---|---|\n");
-  const int kMethods = 11;
+  const int kMethods = 12;
   const char* names[kMethods] = {
       "closed form sigma^2 H^-1 (on top of ICP)",
       "Censi sandwich (on top of ICP)",
@@ -1002,9 +1009,10 @@ int Main(int argc, char** argv) {
       "Bayesian ICP, session-4 default (+ block tempering, 1.049; Huber 0.1 m, k = 10)",
       "Bayesian ICP, session-5 default (Cauchy 0.05 m, k = 20, 32 cells, 1.136)",
       "Bayesian ICP, session-7 try (+ refinement within 0.2 m, 1.246; not adopted)",
+      "Bayesian ICP, session-9 try (+ field-of-view gate, 1.274; not adopted)",
       "Bayesian ICP, new default (configuration line above the table)",
       "Bayesian ICP, new default + prior = init distribution"};
-  const int kNew = 9, kSession3 = 5;
+  const int kNew = 10, kSession3 = 5;
   std::vector<MethodRun> held(kMethods), fresh(kMethods);
   for (size_t i = 0; i < sets.size(); ++i) {
     const std::string& name = sets[i].label;
@@ -1022,6 +1030,7 @@ int Main(int argc, char** argv) {
                                    RunBayesian(sets[i].pairs, session4),
                                    RunBayesian(sets[i].pairs, session5),
                                    RunBayesian(sets[i].pairs, session7),
+                                   RunBayesian(sets[i].pairs, session9),
                                    RunBayesian(sets[i].pairs, tuned, &inflation),
                                    RunBayesian(sets[i].pairs, tuned_prior)};
     icp_only.total_ms /= static_cast<double>(sets[i].pairs.size());
