@@ -146,11 +146,12 @@ class IcpTarget {
     int8_t in_view = -1;
   };
   // Match() with state carried across calls for one source point. The result
-  // must equal Match()'s. KdTreeTarget: a search also finds the second-nearest
-  // point; while later queries stay within half the gap between the two
-  // distances of the searched position, the nearest point cannot have changed
-  // (triangle inequality) and no search is made. The default is MatchWithHint
-  // on state->index.
+  // must equal Match()'s, except that MatchCriteria::field_of_view_gate is
+  // decided at the first call and kept (MatchState::in_view). KdTreeTarget: a
+  // search also finds the second-nearest point; while later queries stay within
+  // half the gap between the two distances of the searched position, the nearest
+  // point cannot have changed (triangle inequality) and no search is made. The
+  // default is MatchWithHint on state->index.
   virtual bool MatchTracked(const Eigen::Vector3f& point,
                             const Eigen::Vector3f& normal,
                             const MatchCriteria& criteria,

@@ -40,8 +40,9 @@
 // The hall, staircase and corridor pairs are simulated only after that. For
 // comparison: "old model A" (likelihood sigma = 3.15 x ICP residual sigma, session
 // 1), the session-3, -4 and -5 defaults, session 7's try and session 9's try (the
-// field-of-view gate of IcpOptions, scale 1.274 fitted with it), and "prior" rows that add a Gaussian prior equal to the distribution the initial
-// guess was drawn from (2 deg / 10 cm per axis). --fresh H S adds hall / staircase
+// field-of-view gate of IcpOptions, scale 1.274 fitted with it), and "prior" rows
+// that add a Gaussian prior equal to the distribution the initial guess was drawn
+// from (2 deg / 10 cm per axis). --fresh H S adds hall / staircase
 // pairs of seeds H / S (fresh held-out sets; session 4 used 22/23 for its first
 // try and 32/33 for its second, the lead 42/43 for a third; session 5 52/53 for the
 // fourth and 62/63 for the fourth and fifth side by side, then 72/73 for the adopted
