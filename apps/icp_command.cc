@@ -105,6 +105,12 @@ int RunIcp(int argc, char** argv) {
   options.AddDouble("Icp.convergence_translation", &icp.convergence_translation_m, "step threshold (m)");
   options.AddDouble("Icp.degeneracy_threshold", &icp.degeneracy_threshold,
                     "min/max eigenvalue ratio of the scaled Hessian");
+  options.AddBool("Icp.field_of_view_gate", &icp.field_of_view_gate,
+                  "no match for source points outside the target scan's elevation band or range "
+                  "(target in its sensor frame, spin axis z)");
+  options.AddDouble("Icp.visibility_gate", &icp.visibility_gate_m,
+                    "no match for source points hidden more than this (m, + 2 % of the range) behind "
+                    "the target scan's surface seen from its sensor (0 = off)");
   options.AddChoice("Bayesian.kernel", &bayes.icp.kernel, {"none", "huber", "cauchy", "geman_mcclure"},
                     "robust kernel of --method bayesian (replaces Icp.kernel; calibrated with cauchy)");
   options.AddDouble("Bayesian.kernel_scale", &bayes.icp.kernel_scale_m,
@@ -114,6 +120,12 @@ int RunIcp(int argc, char** argv) {
   options.AddDouble("Bayesian.min_planarity", &bayes.icp.min_planarity,
                     "ignore target points with lower planarity in --method bayesian (replaces "
                     "Icp.min_planarity; calibrated with 0.1)");
+  options.AddBool("Bayesian.field_of_view_gate", &bayes.icp.field_of_view_gate,
+                  "Icp.field_of_view_gate of --method bayesian (replaces it; calibrated with 1; "
+                  "set 0 for clouds not in their sensor frame)");
+  options.AddDouble("Bayesian.visibility_gate", &bayes.icp.visibility_gate_m,
+                    "Icp.visibility_gate of --method bayesian (m; replaces it; calibrated with 0.1; "
+                    "set 0 for clouds not in their sensor frame)");
   options.AddInt("Bayesian.iterations", &bayes.sgld.num_iterations, "SGLD iterations");
   options.AddInt("Bayesian.burn_in", &bayes.sgld.burn_in, "SGLD burn-in iterations");
   options.AddInt("Bayesian.thinning", &bayes.sgld.thinning, "keep every k-th sample");
@@ -124,7 +136,7 @@ int RunIcp(int argc, char** argv) {
   options.AddInt("Bayesian.num_correlation_cells", &bayes.num_correlation_cells,
                  "spatial cells of the per-pair (cluster sandwich) noise estimate");
   options.AddDouble("Bayesian.leverage_power", &bayes.jackknife_leverage_power,
-                    "leverage adjustment of the cluster sandwich: 0 = CR1 (calibrated), 1 = CR3 jackknife");
+                    "leverage adjustment of the cluster sandwich: 0 = CR1, 1 = CR3 jackknife (calibrated)");
   options.AddDouble("Bayesian.refine_max_correspondence_distance",
                     &bayes.refine_max_correspondence_distance_m,
                     "after the ICP, refine it and associate the posterior within this distance (m; "
@@ -144,15 +156,15 @@ int RunIcp(int argc, char** argv) {
   NormalOptions target_normals = normal_options;
   if (method == "bayesian") {
     // The calibrated association of Bayesian ICP (BayesianIcpOptions): the Icp.*
-    // options except kernel, kernel scale, planarity gate and normal k, which come
-    // from Bayesian.*.
-    const std::string kernel = bayes.icp.kernel;
-    const double kernel_scale = bayes.icp.kernel_scale_m;
-    const double min_planarity = bayes.icp.min_planarity;
+    // options except kernel, kernel scale, planarity gate, the two view gates and
+    // normal k, which come from Bayesian.*.
+    const IcpOptions calibrated = bayes.icp;
     bayes.icp = icp;
-    bayes.icp.kernel = kernel;
-    bayes.icp.kernel_scale_m = kernel_scale;
-    bayes.icp.min_planarity = min_planarity;
+    bayes.icp.kernel = calibrated.kernel;
+    bayes.icp.kernel_scale_m = calibrated.kernel_scale_m;
+    bayes.icp.min_planarity = calibrated.min_planarity;
+    bayes.icp.field_of_view_gate = calibrated.field_of_view_gate;
+    bayes.icp.visibility_gate_m = calibrated.visibility_gate_m;
     target_normals.num_neighbors = bayes.normal_neighbors;
   }
   if (!icp.Check()) throw UsageError("invalid Icp.* options (see lisfm icp -h for ranges)");

@@ -111,6 +111,13 @@ SgldResult SampleSgld(const SgldModel& model,
 // neighbourhoods are linear, not planar: planarity (l1 - l0) / l2 near 0. 0.1 was
 // the gate with the widest range of scales meeting both target bands on the tuning
 // scenes ({0, 0.1, 0.2, 0.3}); real BALM pairs: mean error 0.052 -> 0.045 deg.
+// Why the view gates (session 10; IcpOptions::field_of_view_gate and
+// visibility_gate_m 0.1 m): a source point on a surface the target scan could not
+// see (outside its vertical field of view, or behind another surface) still finds
+// the nearest surface the target did see; on stairs that is another tread, a
+// vertical bias that grew with the vertical motion between the scans. They assume
+// clouds in their sensor frames (spin axis z); turn them off for other clouds
+// (lisfm icp: --Bayesian.field_of_view_gate 0 --Bayesian.visibility_gate 0).
 IcpOptions BayesianDefaultIcpOptions();
 
 struct BayesianIcpOptions {
@@ -231,13 +238,34 @@ struct BayesianIcpOptions {
   //    test's 40 pairs: mean NEES 9.01 vs 8.10. More coverage, not a lower NEES, and a
   //    user's target need not be in its sensor frame: not adopted, the gate stays an
   //    option (off).
-  //  The target (92-98 %, mean NEES 5-7 held out) is still NOT met as a
-  //  whole: the hall meets it since the planarity gate; the staircase is
-  //  over-confident (block mean NEES ~5 / ~6 vs 3), more than with the fifth try;
-  //  session 7 traced it (on the stair tower) to a common-mode vertical bias of the
-  //  association on stairs, which no cell split can see.
+  //  - session 10, tenth try = these defaults: the field-of-view gate together with
+  //    a visibility gate (IcpOptions::visibility_gate_m 0.1 m: no match for a source
+  //    point hidden behind the target's own surface, from a range image of the
+  //    target), both decided once per source point in the ICP, in
+  //    BayesianDefaultIcpOptions; and the CR3 jackknife (jackknife_leverage_power 1).
+  //    Chosen on the tuning scenes by session 7's rule (office band >= 10 % wide,
+  //    then the highest stair-tower coverage): gates with p = 0 / 0.5 / 1 gave the
+  //    tower 72 / 78 / 78 % (mean NEES 15.1 / 14.4 / 13.9), 48 cells; 32 cells with
+  //    p = 1 gave 81 % but an office band 9.4 % wide. Scale 1.060 fitted by the
+  //    session-6 rule; frozen with the bench's own range image and run once on FRESH
+  //    seeds 142/143: 91.0 % / 5.93 / 4.92 (the sessions 6-9 defaults on the same
+  //    pairs: 85.5 % / 8.58 / 5.68; staircase 84.0 % / 6.75 vs 75.0 % / 11.45, hall
+  //    98.0 % / 5.10 vs 96.0 % / 5.71). Adopted on that comparison. In the library
+  //    (its own range image, elevation bins floor(deg) instead of floor(deg + 20))
+  //    the fit gives 1.063 and the same pairs 92.0 % / 5.76. Then run once more on
+  //    new FRESH seeds 152/153 for an unselected number: coverage 92.0 %, mean NEES
+  //    6.72, median 5.09 (sessions 6-9 defaults 88.0 % / 8.12); hall 99.0 % / 5.39,
+  //    staircase 85.0 % / 8.05. Seeds 12/13: 92.5 % / 6.51 (was 85.5 % / 7.76). The
+  //    stair tower: 78 % / 13.9 (was 55 % / 64.7). Real pairs: BALM posterior-mean
+  //    error 0.052 deg / 3.9 mm (0.052 / 4.0 before), registration_lidar_pair
+  //    0.163 deg / 23.3 mm (0.184 / 23.9).
+  //  The target (92-98 %, mean NEES 5-7 held out, hall + staircase) is met
+  //  since session 10 on every held-out set measured, at the lower edge of the
+  //  coverage band (92.0-92.5 %): the staircase alone stays over-confident (85-87 %,
+  //  mean NEES 6.6-8.1) and the hall alone slightly conservative (98-99 %). The
+  //  degenerate corridor (not part of the target) is not calibrated: 72 % / 138.
   double noise_sigma_m = 0;
-  double noise_sigma_scale = 1.262;   // multiplies the estimated sigma (fitted on the tuning scenes, see above)
+  double noise_sigma_scale = 1.063;   // multiplies the estimated sigma (fitted on the tuning scenes, see above)
   double correlation_length_m = 0.0;  // fixed cell edge (m); used when num_correlation_cells = 0
   int num_correlation_cells = 48;     // cells per pair (chosen on the tuning scenes, session 6); 0: correlation_length_m
   // Prior on T around the initial guess, per axis 1-sigma (0 = flat along that
@@ -273,14 +301,17 @@ struct BayesianIcpOptions {
   bool block_tempering = true;
   // Leverage power p of the cluster deltas (ComputeClusterSandwich): each cell's
   // whitened score is multiplied by (I - A_c)^-p, A_c its leverage. 1: CR3, the exact
-  // delete-one-cell jackknife (sessions 3-5); 0 (session 6): no leverage
-  // adjustment, i.e. the centred CR1 sandwich. Why 0: with CR3 the NEES of a pair grew
-  // with the number of cells that share its variance (cells of high leverage inflate
-  // the variance of the pairs they dominate, and the fitted scale then leaves the
-  // others over-confident); on the three tuning scenes (office, open-plan and narrow
-  // office) p = 1 / 0.5 / 0 met both target bands over scale ranges 10.7 / 12.5 /
-  // 13.3 % wide and left the three scenes' mean NEES 1.5 / 1.0 / 0.5 apart.
-  double jackknife_leverage_power = 0.0;
+  // delete-one-cell jackknife (sessions 3-5, and again from session 10); 0 (sessions
+  // 6-9): no leverage adjustment, i.e. the centred CR1 sandwich. Session 6 chose 0:
+  // on the three office tuning scenes p = 1 / 0.5 / 0 met both target bands over
+  // scale ranges 10.7 / 12.5 / 13.3 % wide, and with CR3 the NEES of a pair grew with
+  // the number of cells sharing its variance. Session 10 chose 1 with the view gates
+  // of BayesianDefaultIcpOptions: on the stair tower (tuning check) the vertical
+  // rests on the few cells holding tread matches, whose own residuals were fitted
+  // by the estimate (high leverage), so CR1 under-states it; at the refitted scales
+  // p = 0 / 0.5 / 1 gave the tower 72 / 78 / 78 % (mean NEES 15.1 / 14.4 / 13.9) with
+  // office bands 13.6 / 14.0 / 12.6 % wide.
+  double jackknife_leverage_power = 1.0;
   // Correspondence distance (m) of the likelihood's association: after the ICP
   // (which converges with icp.max_correspondence_distance_m from the initial
   // guess), the estimate is refined by a second ICP with this distance, and the

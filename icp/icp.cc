@@ -225,7 +225,7 @@ bool IcpOptions::Check() const {
          min_planarity <= 1 && kernel_scale_m > 0 && convergence_rotation_rad >= 0 &&
          convergence_translation_m >= 0 && min_inliers >= 6 && degeneracy_threshold >= 0 &&
          coarse_stride >= 1 && coarse_levels >= 0 && coarse_levels <= 8 &&
-         coarse_min_points >= 1 && max_inner_iterations >= 0;
+         coarse_min_points >= 1 && max_inner_iterations >= 0 && visibility_gate_m >= 0;
 }
 
 // ---- targets ----
@@ -240,7 +240,41 @@ struct KdTreeTarget::FieldOfView {
   std::once_flag once;
   float min_sin_elevation = -1.f, max_sin_elevation = 1.f;
   float max_range_m = 0.f;
+  // Visibility (range image): per bin the range of the nearest target point, 0 if
+  // the bin holds none.
+  static constexpr int kAzimuthBins = 720;    // 0.5 deg
+  static constexpr int kElevationBins = 180;  // 1 deg, -90..+90 deg
+  std::once_flag image_once;
+  std::vector<float> nearest_range;
+  // Bin of a direction d != 0 (seen from the viewpoint) of norm r.
+  static int Bin(const Eigen::Vector3f& d, float r) {
+    constexpr float kToDeg = 180.f / static_cast<float>(M_PI);
+    const float azimuth = std::atan2(d.y(), d.x()) * kToDeg;  // -180..180
+    const float elevation = std::asin(std::clamp(d.z() / r, -1.f, 1.f)) * kToDeg;
+    const int a = std::clamp(static_cast<int>((azimuth + 180.f) * 2.f), 0, kAzimuthBins - 1);
+    const int e = std::clamp(static_cast<int>(std::floor(elevation)) + 90, 0, kElevationBins - 1);
+    return e * kAzimuthBins + a;
+  }
 };
+
+bool KdTreeTarget::Visible(const Eigen::Vector3f& point, float tolerance_m) const {
+  FieldOfView& fov = *field_of_view_;
+  std::call_once(fov.image_once, [&] {
+    fov.nearest_range.assign(FieldOfView::kAzimuthBins * FieldOfView::kElevationBins, 0.f);
+    for (const Eigen::Vector3f& q : tree_.points()) {
+      const Eigen::Vector3f d = q - viewpoint_;
+      const float r = d.norm();
+      if (!(r > 0)) continue;
+      float& nearest = fov.nearest_range[FieldOfView::Bin(d, r)];
+      if (nearest == 0.f || r < nearest) nearest = r;
+    }
+  });
+  const Eigen::Vector3f d = point - viewpoint_;
+  const float r = d.norm();
+  if (!(r > 0)) return true;
+  const float nearest = fov.nearest_range[FieldOfView::Bin(d, r)];
+  return nearest == 0.f || r <= nearest * 1.02f + tolerance_m;
+}
 
 bool KdTreeTarget::InFieldOfView(const Eigen::Vector3f& point) const {
   FieldOfView& fov = *field_of_view_;
@@ -378,7 +412,7 @@ bool KdTreeTarget::MatchWithHint(const Eigen::Vector3f& point,
                                  Eigen::Vector3f* target_point,
                                  Eigen::Vector3f* target_normal,
                                  uint32_t* hint) const {
-  if (criteria.field_of_view_gate && !InFieldOfView(point)) return false;
+  if (!InView(point, criteria)) return false;
   // The nearest point is at most as far as the previous match: a tighter bound
   // prunes most of the tree walk once the estimate settles (same result).
   float bound = criteria.max_distance_m * criteria.max_distance_m;
@@ -400,8 +434,8 @@ bool KdTreeTarget::MatchTracked(const Eigen::Vector3f& point,
                                 Eigen::Vector3f* target_point,
                                 Eigen::Vector3f* target_normal,
                                 MatchState* state) const {
-  if (criteria.field_of_view_gate) {
-    if (state->in_view < 0) state->in_view = InFieldOfView(point) ? 1 : 0;
+  if (criteria.field_of_view_gate || criteria.visibility_gate_m > 0.f) {
+    if (state->in_view < 0) state->in_view = InView(point, criteria) ? 1 : 0;
     if (state->in_view == 0) return false;
   }
   const float max_sq = criteria.max_distance_m * criteria.max_distance_m;
@@ -491,7 +525,8 @@ LinearizationContext::LinearizationContext(const SE3& T, const IcpOptions& optio
       translation_f(T.translation().cast<float>()),
       criteria{static_cast<float>(options.max_correspondence_distance_m),
                static_cast<float>(std::cos(options.max_normal_angle_deg * kDegToRad)),
-               static_cast<float>(options.min_planarity), options.field_of_view_gate},
+               static_cast<float>(options.min_planarity), options.field_of_view_gate,
+               static_cast<float>(options.visibility_gate_m)},
       kernel(RobustKernelFromString(options.kernel)),
       kernel_scale_m(options.kernel_scale_m) {}
 

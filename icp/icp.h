@@ -87,12 +87,26 @@ struct IcpOptions {
   // motion (correlation 0.59; 0.38 gated), its posterior-mean median error 9.7 ->
   // 5.3 mm gated. RegisterPointToPlane decides the gate once per source point (at
   // its first association, MatchState::in_view): re-decided at every pose, the gate
-  // let 1 of 100 staircase pairs drift until no point was in view. Off by default,
-  // also for Bayesian ICP: tried as its default (session 9), the fresh held-out
-  // coverage rose (87.0 -> 88.5 %) but the mean NEES did too (7.30 -> 7.74), and a
-  // user's target need not be in its sensor frame (docs/BENCHMARKS.md, ICP,
-  // covariance calibration, eighth round).
+  // let 1 of 100 staircase pairs drift until no point was in view. Off by default
+  // (a user's target need not be in its sensor frame). Alone as the Bayesian default
+  // (session 9) the fresh held-out coverage rose (87.0 -> 88.5 %) but the mean NEES
+  // did too (7.30 -> 7.74; docs/BENCHMARKS.md, ICP, covariance calibration, eighth
+  // round); with visibility_gate_m it is on in BayesianDefaultIcpOptions since
+  // session 10 (ninth round).
   bool field_of_view_gate = false;
+  // KdTreeTarget only: no match for a source point (in the target frame) that lies
+  // more than this (m) plus 2 % of its range behind the nearest target point in
+  // its direction, i.e. hidden from the target's viewpoint by a surface the target
+  // scanned (a spherical range image of the target: bins of 0.5 deg azimuth x 1 deg
+  // elevation, a 32-ring LiDAR's ring spacing; a bin without target points hides
+  // nothing). 0 = off. Same scope and same once-per-source-point decision in
+  // RegisterPointToPlane as field_of_view_gate. Why (session 10): a source point on
+  // a surface the target could not see (a tread behind a flight of stairs) still
+  // finds the nearest surface the target did see. With field_of_view_gate, 0.1 m:
+  // the simulated stair tower's Bayesian coverage 54 -> 72 %, mean NEES 64.9 ->
+  // 15.1 (docs/BENCHMARKS.md, ICP, covariance calibration, ninth round). Off by
+  // default; on by default in BayesianDefaultIcpOptions.
+  double visibility_gate_m = 0.0;
   bool Check() const;
 };
 
@@ -102,6 +116,7 @@ struct MatchCriteria {
   float min_cos_normal_angle = 0.f;  // |n_source . n_target| at least this, when the source normal is given
   float min_planarity = 0.f;         // target points with lower planarity are not matched
   bool field_of_view_gate = false;   // IcpOptions::field_of_view_gate (KdTreeTarget)
+  float visibility_gate_m = 0.f;     // IcpOptions::visibility_gate_m (KdTreeTarget; 0 = off)
 };
 
 // Where source points find their matches. Match() receives a source point and
@@ -139,15 +154,17 @@ class IcpTarget {
     // The nearest point stays `index` while the query is closer than this to
     // anchor (m); <= 0: unknown, search.
     float margin_m = -1.f;
-    // MatchCriteria::field_of_view_gate, decided at the first call and then kept
-    // (-1: not decided yet): a gate re-decided at every pose lets a registration
-    // drift towards poses where fewer points are in view, since a point out of view
-    // costs nothing (session 9: 1 of 100 staircase pairs drifted to no match at all).
+    // MatchCriteria::field_of_view_gate and visibility_gate_m, decided at the first
+    // call and then kept (-1: not decided yet): a gate re-decided at every pose lets
+    // a registration drift towards poses where fewer points are in view, since a
+    // point out of view costs nothing (session 9: 1 of 100 staircase pairs drifted to
+    // no match at all).
     int8_t in_view = -1;
   };
   // Match() with state carried across calls for one source point. The result
-  // must equal Match()'s, except that MatchCriteria::field_of_view_gate is
-  // decided at the first call and kept (MatchState::in_view). KdTreeTarget: a
+  // must equal Match()'s, except that MatchCriteria::field_of_view_gate and
+  // visibility_gate_m are decided at the first call and kept
+  // (MatchState::in_view). KdTreeTarget: a
   // search also finds the second-nearest point; while later queries stay within
   // half the gap between the two distances of the searched position, the nearest
   // point cannot have changed (triangle inequality) and no search is made. The
@@ -216,9 +233,16 @@ class KdTreeTarget : public IcpTarget {
                    const MatchCriteria& criteria,
                    Eigen::Vector3f* target_point,
                    Eigen::Vector3f* target_normal) const;
-  // The field of view of IcpOptions::field_of_view_gate, computed on first use.
+  // The field of view of IcpOptions::field_of_view_gate and the range image of
+  // visibility_gate_m, each computed on first use.
   struct FieldOfView;
   bool InFieldOfView(const Eigen::Vector3f& point) const;
+  bool Visible(const Eigen::Vector3f& point, float tolerance_m) const;
+  // The gates of `criteria` that apply to `point` (true: it may be matched).
+  bool InView(const Eigen::Vector3f& point, const MatchCriteria& criteria) const {
+    return (!criteria.field_of_view_gate || InFieldOfView(point)) &&
+           (criteria.visibility_gate_m <= 0.f || Visible(point, criteria.visibility_gate_m));
+  }
   KdTree tree_;
   NormalOptions normal_options_;
   Eigen::Vector3f viewpoint_ = Eigen::Vector3f::Zero();

@@ -131,8 +131,8 @@ TEST(IcpCommand, BayesianNormalNeighborsAreChecked) {
   EXPECT_EQ(RunCommand(base + "point_to_plane", &output), 0) << output;
 }
 
-// The planarity gate, leverage power and refinement distance of --method bayesian
-// are range-checked (usage error, exit 2) and written to config.yaml with the value
+// The planarity gate, leverage power, refinement distance and view gates of
+// --method bayesian are range-checked (usage error, exit 2) and written to config.yaml with the value
 // used.
 TEST(IcpCommand, BayesianGateAndLeveragePowerAreCheckedAndRecorded) {
   TempDir dir;
@@ -146,16 +146,21 @@ TEST(IcpCommand, BayesianGateAndLeveragePowerAreCheckedAndRecorded) {
   EXPECT_EQ(RunCommand(base + " --Bayesian.leverage_power -1", &output), 2) << output;
   EXPECT_EQ(RunCommand(base + " --Bayesian.refine_max_correspondence_distance -0.1", &output), 2)
       << output;
+  EXPECT_EQ(RunCommand(base + " --Bayesian.visibility_gate -0.1", &output), 2) << output;
   const std::string out_dir = dir.File("out");
   EXPECT_EQ(RunCommand(base + " --Bayesian.min_planarity 0.2 "
-                             "--Bayesian.refine_max_correspondence_distance 0.2 --output_path " +
+                             "--Bayesian.refine_max_correspondence_distance 0.2 "
+                             "--Bayesian.field_of_view_gate 0 --Bayesian.visibility_gate 0.05 "
+                             "--output_path " +
                              out_dir,
                          &output),
             0)
       << output;
   const std::string config = ReadAll(out_dir + "/config.yaml");
   EXPECT_NE(config.find("Bayesian.min_planarity: 0.2"), std::string::npos) << config;
-  EXPECT_NE(config.find("Bayesian.leverage_power: 0"), std::string::npos) << config;
+  EXPECT_NE(config.find("Bayesian.leverage_power: 1"), std::string::npos) << config;
+  EXPECT_NE(config.find("Bayesian.field_of_view_gate: 0"), std::string::npos) << config;
+  EXPECT_NE(config.find("Bayesian.visibility_gate: 0.05"), std::string::npos) << config;
   EXPECT_NE(config.find("Bayesian.refine_max_correspondence_distance: 0.2"), std::string::npos)
       << config;
 }

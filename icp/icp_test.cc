@@ -215,6 +215,53 @@ TEST(KdTreeTarget, FieldOfViewGate) {
   EXPECT_TRUE(target.MatchTracked(above, Eigen::Vector3f::Zero(), gated, &q, &n, &in_state));
 }
 
+// IcpOptions::visibility_gate_m: a target scanned from the origin sees a small
+// near wall (x = 3 m) in front of a large far wall (x = 6 m). A source point behind
+// the near wall (hidden from the target's viewpoint) gets no match with the gate;
+// points in front of it, within the tolerance, or beside it match as without.
+TEST(KdTreeTarget, VisibilityGate) {
+  PointSet points;
+  for (int i = -50; i <= 50; ++i) {
+    for (int j = -50; j <= 50; ++j) points.emplace_back(3.f, 0.01f * i, 0.01f * j);
+  }
+  for (int i = -60; i <= 60; ++i) {
+    for (int j = -60; j <= 60; ++j) points.emplace_back(6.f, 0.05f * i, 0.05f * j);
+  }
+  const KdTreeTarget target(points, NormalOptions());
+  MatchCriteria gated{3.f, 0.f, 0.f};
+  gated.visibility_gate_m = 0.1f;
+  const MatchCriteria open{3.f, 0.f, 0.f};
+  const Eigen::Vector3f hidden(3.5f, 0.1f, 0.1f);    // 0.5 m behind the near wall
+  const Eigen::Vector3f front(2.9f, 0.1f, 0.1f);     // in front of it
+  const Eigen::Vector3f tolerated(3.12f, 0.1f, 0.1f);  // behind, within 0.1 m + 2 %
+  const Eigen::Vector3f beside(5.f, 2.f, 0.f);       // in front of the far wall
+  Eigen::Vector3f q, n, q_gated, n_gated;
+  EXPECT_TRUE(target.Match(hidden, Eigen::Vector3f::Zero(), open, &q, &n));
+  EXPECT_FALSE(target.Match(hidden, Eigen::Vector3f::Zero(), gated, &q, &n));
+  for (const Eigen::Vector3f& p : {front, tolerated, beside}) {
+    ASSERT_TRUE(target.Match(p, Eigen::Vector3f::Zero(), open, &q, &n));
+    ASSERT_TRUE(target.Match(p, Eigen::Vector3f::Zero(), gated, &q_gated, &n_gated));
+    EXPECT_EQ(q, q_gated);
+  }
+  uint32_t hint = IcpTarget::kNoHint;
+  EXPECT_FALSE(target.MatchWithHint(hidden, Eigen::Vector3f::Zero(), gated, &q, &n, &hint));
+  // MatchTracked decides once per source point, as the field-of-view gate.
+  IcpTarget::MatchState hidden_state, front_state;
+  EXPECT_FALSE(target.MatchTracked(hidden, Eigen::Vector3f::Zero(), gated, &q, &n, &hidden_state));
+  EXPECT_FALSE(target.MatchTracked(front, Eigen::Vector3f::Zero(), gated, &q, &n, &hidden_state));
+  EXPECT_TRUE(target.MatchTracked(front, Eigen::Vector3f::Zero(), gated, &q, &n, &front_state));
+  EXPECT_TRUE(target.MatchTracked(hidden, Eigen::Vector3f::Zero(), gated, &q, &n, &front_state));
+  // The range image is seen from the target's viewpoint. From x = 4.5 m (between
+  // the walls) the point behind the near wall is in front of it, and a point at
+  // x = 2.5 m is behind it.
+  const KdTreeTarget between(points, NormalOptions(), Eigen::Vector3f(4.5f, 0.f, 0.f));
+  EXPECT_TRUE(between.Match(hidden, Eigen::Vector3f::Zero(), gated, &q, &n));
+  EXPECT_FALSE(between.Match(Eigen::Vector3f(2.5f, 0.1f, 0.1f), Eigen::Vector3f::Zero(), gated, &q, &n));
+  IcpOptions bad;
+  bad.visibility_gate_m = -0.1;
+  EXPECT_FALSE(bad.Check());
+}
+
 TEST(RegisterPointToPlane, InnerIterationsKeepTheFixedPoint) {
   const SE3 truth(so3::Exp(Vec3(0.1, -0.12, 0.15)), Vec3(0.4, -0.25, 0.2));
   const auto [target, source] = SampleNoisyRoomPair(3000, 1500, truth);

@@ -270,60 +270,14 @@ double g_min_planarity = -1;  // --min_planarity (exploration; < 0: the library'
 std::string g_kernel;          // --kernel (exploration; empty: the bench default)
 double g_kernel_scale = -1;    // --kernel_scale (exploration)
 double g_normal_angle = -1;    // --normal_angle (exploration; with --source_normals)
-bool g_fov_gate = false;       // --fov_gate: the new default with IcpOptions::field_of_view_gate (exploration, session 9)
+int g_fov_gate = -1;           // --fov_gate / --no_fov_gate: IcpOptions::field_of_view_gate of the new default (< 0: the library's)
 double g_max_corr = -1;        // --max_corr (exploration)
 
-// Exploration (session 7, --visibility TAU): a target whose matches are refused to
-// source points the target sensor could not have seen: behind (by more than TAU +
-// 2 % of the range) the nearest target point in their direction of a spherical range
-// image of the target (0.5 deg azimuth x 1 deg elevation bins; sensor at the origin).
-class VisibilityGatedTarget : public IcpTarget {
- public:
-  VisibilityGatedTarget(const KdTreeTarget& base, double tau_m)
-      : base_(base), tau_(static_cast<float>(tau_m)), image_(kAz * kEl, 0.f) {
-    for (const Eigen::Vector3f& q : base.tree().points()) {
-      const int b = Bin(q);
-      if (b < 0) continue;
-      const float r = q.norm();
-      if (image_[b] == 0.f || r < image_[b]) image_[b] = r;
-    }
-  }
-  bool Match(const Eigen::Vector3f& p, const Eigen::Vector3f& n, const MatchCriteria& c,
-             Eigen::Vector3f* q, Eigen::Vector3f* nq) const override {
-    return Visible(p) && base_.Match(p, n, c, q, nq);
-  }
-  size_t size() const override { return base_.size(); }
-  bool MatchWithHint(const Eigen::Vector3f& p, const Eigen::Vector3f& n, const MatchCriteria& c,
-                     Eigen::Vector3f* q, Eigen::Vector3f* nq, uint32_t* hint) const override {
-    return Visible(p) && base_.MatchWithHint(p, n, c, q, nq, hint);
-  }
-  bool MatchTracked(const Eigen::Vector3f& p, const Eigen::Vector3f& n, const MatchCriteria& c,
-                    Eigen::Vector3f* q, Eigen::Vector3f* nq, MatchState* state) const override {
-    return Visible(p) && base_.MatchTracked(p, n, c, q, nq, state);
-  }
-
- private:
-  static constexpr int kAz = 720, kEl = 40;  // 0.5 deg x 1 deg, elevation -20..+20 deg
-  static int Bin(const Eigen::Vector3f& p) {
-    const float r = p.norm();
-    if (!(r > 0)) return -1;
-    const float az = std::atan2(p.y(), p.x()) * 180.f / static_cast<float>(M_PI);  // -180..180
-    const float el = std::asin(p.z() / r) * 180.f / static_cast<float>(M_PI);
-    const int a = std::clamp(static_cast<int>((az + 180.f) * 2.f), 0, kAz - 1);
-    const int e = static_cast<int>(std::floor(el + 20.f));
-    if (e < 0 || e >= kEl) return -1;
-    return e * kAz + a;
-  }
-  bool Visible(const Eigen::Vector3f& p) const {
-    const int b = Bin(p);
-    if (b < 0 || image_[b] == 0.f) return true;
-    return p.norm() <= image_[b] * 1.02f + tau_;
-  }
-  const KdTreeTarget& base_;
-  float tau_;
-  std::vector<float> image_;
-};
-double g_visibility = 0;  // --visibility TAU (exploration)
+// --visibility TAU (exploration): IcpOptions::visibility_gate_m of the new default
+// (< 0: the library's). Until session 10 a bench-only range image (session 7: 0.5 deg
+// x 1 deg bins, re-decided at every pose; session 10: decided once per point), now
+// the library's.
+double g_visibility = -1;
 
 // Exploration (session 7, --patch K): FAST-LIO-style association: the K nearest
 // target points of the query (within the correspondence distance) get a plane fit
@@ -381,7 +335,8 @@ IcpOptions NewDefaultIcpOptions() {
   if (g_kernel_scale > 0) o.kernel_scale_m = g_kernel_scale;
   if (g_max_corr > 0) o.max_correspondence_distance_m = g_max_corr;
   if (g_normal_angle > 0) o.max_normal_angle_deg = g_normal_angle;
-  if (g_fov_gate) o.field_of_view_gate = true;
+  if (g_fov_gate >= 0) o.field_of_view_gate = g_fov_gate > 0;
+  if (g_visibility >= 0) o.visibility_gate_m = g_visibility;
   return o;
 }
 
@@ -426,7 +381,8 @@ struct BayesConfig {
   double min_planarity = -1;  // >= 0: overrides the new default's min_planarity (the session-5 default: 0)
   double leverage_power = 1;  // jackknife_leverage_power (CR3 until session 6); < 0: the library's
   double refine = -1;         // new default only: refine_max_correspondence_distance_m (< 0: --refine or the library's)
-  bool fov_gate = false;      // new default only: IcpOptions::field_of_view_gate on (session 9's try)
+  int fov_gate = -1;          // new default only: IcpOptions::field_of_view_gate 0 / 1 (< 0: --fov_gate or the library's)
+  double visibility = -1;     // new default only: IcpOptions::visibility_gate_m (< 0: --visibility or the library's)
   CorrespondenceVarianceOptions variance;  // its constants
 };
 
@@ -434,7 +390,8 @@ BayesianIcpOptions ToOptions(const BayesConfig& config) {
   BayesianIcpOptions b;
   b.icp = config.new_default ? NewDefaultIcpOptions() : BenchIcpOptions();
   if (config.new_default && config.min_planarity >= 0) b.icp.min_planarity = config.min_planarity;
-  if (config.new_default && config.fov_gate) b.icp.field_of_view_gate = true;
+  if (config.new_default && config.fov_gate >= 0) b.icp.field_of_view_gate = config.fov_gate > 0;
+  if (config.new_default && config.visibility >= 0) b.icp.visibility_gate_m = config.visibility;
   if (config.leverage_power >= 0) b.jackknife_leverage_power = config.leverage_power;
   if (config.new_default && config.leverage_power < 0 && g_leverage_power >= 0) {
     b.jackknife_leverage_power = g_leverage_power;
@@ -469,15 +426,9 @@ MethodRun RunBayesian(const std::vector<PreparedPair>& pairs, const BayesConfig&
     }
     b.sgld.seed = 1000 + k;
     const KdTreeTarget& kd_target = config.new_default ? *pairs[k].target_bayes : *pairs[k].target;
-    std::unique_ptr<VisibilityGatedTarget> gated;
-    if (config.new_default && g_visibility > 0) {
-      gated = std::make_unique<VisibilityGatedTarget>(kd_target, g_visibility);
-    }
     std::unique_ptr<PatchPlaneTarget> patch;
     if (config.new_default && g_patch > 0) patch = std::make_unique<PatchPlaneTarget>(kd_target, g_patch);
-    const IcpTarget& target = patch   ? static_cast<const IcpTarget&>(*patch)
-                              : gated ? static_cast<const IcpTarget&>(*gated)
-                                      : kd_target;
+    const IcpTarget& target = patch ? static_cast<const IcpTarget&>(*patch) : kd_target;
     const auto t0 = Clock::now();
     if (config.old_model_a > 0) {
       const IcpResult icp = RegisterPointToPlane(pairs[k].source, target, pairs[k].initial, b.icp);
@@ -739,7 +690,9 @@ int Main(int argc, char** argv) {
     } else if (std::strcmp(argv[i], "--normal_angle") == 0 && i + 1 < argc) {
       g_normal_angle = std::atof(argv[++i]);
     } else if (std::strcmp(argv[i], "--fov_gate") == 0) {
-      g_fov_gate = true;
+      g_fov_gate = 1;
+    } else if (std::strcmp(argv[i], "--no_fov_gate") == 0) {
+      g_fov_gate = 0;
     } else if (std::strcmp(argv[i], "--source_normals") == 0 && i + 1 < argc) {
       g_source_normals = std::atoi(argv[++i]);
     } else if (std::strcmp(argv[i], "--patch") == 0 && i + 1 < argc) {
@@ -984,14 +937,23 @@ int Main(int argc, char** argv) {
   session5.new_default = true;
   session5.min_planarity = 0;
   session5.refine = 0;
+  session5.fov_gate = 0;
+  session5.visibility = 0;
   BayesConfig session7 = session5;  // session-7 try (not adopted): the session-6 default + refinement within 0.2 m, 1.246
+  session7.fov_gate = 0;
+  session7.visibility = 0;
   session7.min_planarity = 0.1;
   session7.leverage_power = 0;
   session7.cells = 48;
   session7.refine = 0.2;
   session7.scale = 1.246;
-  BayesConfig session9 = tuned;  // session-9 try (not adopted): + the field-of-view gate, 1.274
-  session9.fov_gate = true;
+  BayesConfig session6 = tuned;  // sessions 6-9 default: no gates, CR1 (leverage 0), 1.262
+  session6.fov_gate = 0;
+  session6.visibility = 0;
+  session6.leverage_power = 0;
+  session6.scale = 1.262;
+  BayesConfig session9 = session6;  // session-9 try (not adopted): + the field-of-view gate, 1.274
+  session9.fov_gate = 1;
   session9.scale = 1.274;
   BayesConfig old_a;
   old_a.old_model_a = 3.15;
@@ -999,7 +961,7 @@ int Main(int argc, char** argv) {
 
   std::printf("| pairs | method | n | coverage 95 %% | mean NEES | median NEES | ms per pair |\n");
   std::printf("|---|---|---|---|---|---|---|\n");
-  const int kMethods = 12;
+  const int kMethods = 13;
   const char* names[kMethods] = {
       "closed form sigma^2 H^-1 (on top of ICP)",
       "Censi sandwich (on top of ICP)",
@@ -1010,10 +972,11 @@ int Main(int argc, char** argv) {
       "Bayesian ICP, session-4 default (+ block tempering, 1.049; Huber 0.1 m, k = 10)",
       "Bayesian ICP, session-5 default (Cauchy 0.05 m, k = 20, 32 cells, 1.136)",
       "Bayesian ICP, session-7 try (+ refinement within 0.2 m, 1.246; not adopted)",
+      "Bayesian ICP, sessions 6-9 default (Cauchy 0.05 m, planarity 0.1, 48 cells CR1, 1.262)",
       "Bayesian ICP, session-9 try (+ field-of-view gate, 1.274; not adopted)",
       "Bayesian ICP, new default (configuration line above the table)",
       "Bayesian ICP, new default + prior = init distribution"};
-  const int kNew = 10, kSession3 = 5;
+  const int kNew = 11, kSession3 = 5;
   std::vector<MethodRun> held(kMethods), fresh(kMethods);
   for (size_t i = 0; i < sets.size(); ++i) {
     const std::string& name = sets[i].label;
@@ -1031,6 +994,7 @@ int Main(int argc, char** argv) {
                                    RunBayesian(sets[i].pairs, session4),
                                    RunBayesian(sets[i].pairs, session5),
                                    RunBayesian(sets[i].pairs, session7),
+                                   RunBayesian(sets[i].pairs, session6),
                                    RunBayesian(sets[i].pairs, session9),
                                    RunBayesian(sets[i].pairs, tuned, &inflation),
                                    RunBayesian(sets[i].pairs, tuned_prior)};
