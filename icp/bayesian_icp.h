@@ -321,7 +321,8 @@ struct BayesianIcpOptions {
   // 0.2 m: stair tower posterior-mean median / p90 error 9.7 / 45 mm -> 5.1 / 16 mm,
   // offices unchanged, real registration_lidar_pair 0.19 -> 0.12 deg, BALM mean
   // 0.045 -> 0.048 deg / 4.0 -> 3.9 mm. Off by default: its held-out calibration was
-  // not better (see the session-7 note above; the scale 1.262 is fitted without it).
+  // not better (see the session-7 note above; the scale, 1.262 then and 1.063 now, is fitted
+  // without it).
   double refine_max_correspondence_distance_m = 0.0;
   bool Check() const;
   // The association of the likelihood (sandwich and chain): icp, with the

@@ -25,7 +25,8 @@
 // plane-fit per-correspondence variance (plane_fit_variance) and the per-pair
 // rotation/translation block tempering (block_tempering). The "new default" rows
 // use the library defaults of this build (printed above the table), association
-// included (BayesianIcpOptions::icp: Cauchy 0.05 m, planarity gate 0.1, and target
+// included (BayesianIcpOptions::icp: Cauchy 0.05 m, planarity gate 0.1, from session
+// 10 the field-of-view and visibility gates, and target
 // normals of BayesianIcpOptions::normal_neighbors = 20), except the scale, which is
 // re-fitted here, on the tuning scenes ONLY, before any held-out scene is
 // simulated: over the tuning pairs (seed 11) plus 3x as many further pairs (seed 31)
@@ -36,11 +37,13 @@
 // neighbours). num_correlation_cells and jackknife_leverage_power are the library
 // defaults (session 6: 48 cells and 0, the widest range of scales meeting both bands
 // on the three tuning scenes, from {24, 32, 48, 64, 96} with --cells and {1, 0.5, 0}
-// with --leverage_power; --tune_grid prints a grid at scale 1, exploration only).
+// with --leverage_power; session 10: leverage power 1, the highest stair-tower
+// coverage with the view gates; --tune_grid prints a grid at scale 1, exploration only).
 // The hall, staircase and corridor pairs are simulated only after that. For
 // comparison: "old model A" (likelihood sigma = 3.15 x ICP residual sigma, session
-// 1), the session-3, -4 and -5 defaults, session 7's try and session 9's try (the
-// field-of-view gate of IcpOptions, scale 1.274 fitted with it), and "prior" rows
+// 1), the session-3, -4 and -5 defaults, session 7's try, the sessions 6-9 default
+// (no view gates, CR1, 1.262), session 9's try (the field-of-view gate of
+// IcpOptions alone, scale 1.274 fitted with it), and "prior" rows
 // that add a Gaussian prior equal to the distribution the initial guess was drawn
 // from (2 deg / 10 cm per axis). --fresh H S adds hall / staircase
 // pairs of seeds H / S (fresh held-out sets; session 4 used 22/23 for its first
@@ -50,7 +53,8 @@
 // unselected run; session 7 112/113 for its try (refinement within 0.2 m, not
 // adopted); session 9 122/123 for its try (the field-of-view gate; it aborted on a
 // staircase pair, see IcpOptions::field_of_view_gate) and, fixed, 132/133 (not
-// adopted). A new try needs new seeds).
+// adopted); session 10 142/143 for its try (both view gates and CR3; adopted) and
+// 152/153 for an unselected run of the adopted default. A new try needs new seeds).
 // Usage: lisfm_icp_covariance_bench [pairs_per_scene=100] [--fresh H S]
 //        [--cells G] [--scale C (skip the fit)] [--tune_only] [--tune_grid] [--timing]
 //        [--tune_scene S1,S2,... (office | office_open_plan | office_narrow | stair_tower |
@@ -63,10 +67,10 @@
 //        [--voxel_nearest] [--prestage] [--target_mean N] [--refine M (the new
 //        default's refine_max_correspondence_distance_m)] [--init_scale F (multiplies
 //        the initial-guess error)] [--source_normals K] [--normal_angle DEG (with
-//        --source_normals: the new default's max_normal_angle_deg)] [--visibility TAU (refuse
-//        matches to source points hidden behind the target's range image)]
+//        --source_normals: the new default's max_normal_angle_deg)] [--visibility TAU
+//        (IcpOptions::visibility_gate_m of the new default; 0 = off)]
 //        [--patch K (FAST-LIO-style plane fits over the K nearest target points)]
-//        [--fov_gate (the new default with IcpOptions::field_of_view_gate; session 9)]
+//        [--fov_gate | --no_fov_gate (IcpOptions::field_of_view_gate of the new default)]
 //        (variants, exploration)
 // LISFM_COV_DEBUG=1 prints per-pair diagnostics of every Bayesian run;
 // LISFM_COV_COST=1 the robust cost at the truth and at the estimate; LISFM_COV_JACK=1
