@@ -434,7 +434,7 @@ bool KdTreeTarget::MatchTracked(const Eigen::Vector3f& point,
                                 Eigen::Vector3f* target_point,
                                 Eigen::Vector3f* target_normal,
                                 MatchState* state) const {
-  if (criteria.field_of_view_gate || criteria.visibility_gate_m > 0.f) {
+  if (criteria.HasViewGates()) {
     if (state->in_view < 0) state->in_view = InView(point, criteria) ? 1 : 0;
     if (state->in_view == 0) return false;
   }

@@ -117,6 +117,7 @@ struct MatchCriteria {
   float min_planarity = 0.f;         // target points with lower planarity are not matched
   bool field_of_view_gate = false;   // IcpOptions::field_of_view_gate (KdTreeTarget)
   float visibility_gate_m = 0.f;     // IcpOptions::visibility_gate_m (KdTreeTarget; 0 = off)
+  bool HasViewGates() const { return field_of_view_gate || visibility_gate_m > 0.f; }
 };
 
 // Where source points find their matches. Match() receives a source point and
