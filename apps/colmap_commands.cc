@@ -6,8 +6,8 @@
 #include <string>
 
 #include "apps/commands.h"
-#include "colmap_ext/database.h"
-#include "colmap_ext/model_io.h"
+#include "colmap_ext/io/database.h"
+#include "colmap_ext/io/model_io.h"
 #include "core/errors.h"
 #include "core/file_utils.h"
 #include "core/logging.h"

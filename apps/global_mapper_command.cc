@@ -5,10 +5,11 @@
 #include <string>
 
 #include "apps/commands.h"
-#include "colmap_ext/database.h"
-#include "colmap_ext/global_mapper.h"
-#include "colmap_ext/lidar_constraints.h"
-#include "colmap_ext/model_io.h"
+#include "colmap_ext/io/database.h"
+#include "colmap_ext/sfm/global_mapper.h"
+#include "colmap_ext/sfm/lidar_constraints.h"
+#include "core/io/lidar_constraints_io.h"
+#include "colmap_ext/io/model_io.h"
 #include "core/errors.h"
 #include "core/file_utils.h"
 #include "core/io/rig_io.h"
@@ -147,8 +148,8 @@ int RunGlobalMapper(int argc, char** argv) {
                                                     : ReadRigYaml(rig_path));
     if (rig->cameras.empty()) throw InputError(rig_path, "cameras", "the rig has no camera");
   }
-  std::vector<colmap::LidarConstraintRecord> constraints;
-  if (!constraints_path.empty()) constraints = colmap::ReadLidarConstraints(constraints_path);
+  std::vector<LidarConstraintRecord> constraints;
+  if (!constraints_path.empty()) constraints = ReadLidarConstraints(constraints_path);
 
   LogStage("global_mapper: " + database_path);
   const colmap::Database database(database_path, colmap::Database::OpenMode::kReadOnly);

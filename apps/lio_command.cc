@@ -21,6 +21,7 @@
 #include "importers/lidar_frames.h"
 #include "importers/sequence.h"
 #include "lio/lidar_only_odometry.h"
+#include "lio/imu_feeder.h"
 #include "lio/lio_odometry.h"
 
 namespace lisfm {
@@ -149,12 +150,13 @@ int RunLio(int argc, char** argv) {
                "min_eigenvalue,keyframe,message\n";
   // lidar_only uses the primary LiDAR alone.
   LidarFrameReader reader(seq, lidar_only ? std::vector<int>{primary} : used);
+  ImuFeeder imu_feeder(seq.imu);
   const size_t num_frames = max_scans > 0 ? std::min<size_t>(max_scans, reader.num_frames())
                                           : reader.num_frames();
   ProgressReporter progress("lio", static_cast<int64_t>(num_frames));
   LidarFrame frame;
   for (size_t f = 0; f < num_frames && reader.Next(&frame); ++f) {
-    reader.FeedImuUntil(frame.end_ns, &odom);
+    imu_feeder.FeedUntil(frame.end_ns, &odom);
     const LioFrameResult r =
         lidar_only ? lidar_only->ProcessScan(frame.clouds.front()) : odom.ProcessFrame(frame.Inputs());
     if (r.processed) {

@@ -18,8 +18,8 @@
 #include <vector>
 
 #include "apps/commands.h"
-#include "colmap_ext/model_io.h"
-#include "colmap_ext/sfm_evaluation.h"
+#include "colmap_ext/io/model_io.h"
+#include "colmap_ext/sfm/sfm_evaluation.h"
 #include "core/errors.h"
 #include "core/file_utils.h"
 #include "core/logging.h"

@@ -5,8 +5,8 @@
 #include <iostream>
 #include <string>
 
-#include "colmap_ext/model_io.h"
-#include "colmap_ext/synthetic.h"
+#include "colmap_ext/io/model_io.h"
+#include "colmap_ext/testing/synthetic.h"
 
 int main(int argc, char** argv) {
   if (argc < 2 || argv[1][0] == '-') {

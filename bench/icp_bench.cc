@@ -8,10 +8,9 @@
 // times the stages one after the other.
 // `--knn` compares lisfm's KD-tree with nanoflann and FLANN (exact, one thread).
 //
-// Times are medians over `repeats` rounds (whole process and registration alone),
-// each round running every method once (interleaved, session 8); the errors are of
-// the last round. The Bayesian time is ICP + SGLD from the same
-// (lazily normal-estimated) target.
+// Times are medians over `repeats` rounds (whole process and registration alone), each
+// round running every method once (interleaved); the errors are of the last round. The
+// Bayesian time is ICP + SGLD from the same (lazily normal-estimated) target.
 // `--stages` first prints the stage timings of ours (load, voxel grids, tree,
 // registration, iterations).
 // `--only_lisfm` runs only our point-to-plane (quick accuracy/timing checks).
@@ -19,8 +18,8 @@
 // (coarse_min_points or coarse_levels) against the library defaults, alternating the
 // two (and which goes first) in each repeat (one process, so that load drifts hit
 // both alike), and exits.
-// `--bayes_previous` also runs Bayesian ICP with the sessions 6-9 default (accuracy
-// side by side with the current default; session 10).
+// `--bayes_previous` also runs Bayesian ICP without the view gates and with the CR1
+// sandwich (accuracy side by side with the default).
 // Usage: lisfm_icp_bench DATA_DIR [repeats] [--knn] [--stages] [--only_lisfm] [--ab NAME=VALUE]
 //        [--bayes_previous]
 #include <algorithm>
@@ -84,8 +83,9 @@ void Errors(const Mat4& T, const Mat4& ref, double* rot_deg, double* trans_m) {
   *trans_m = (T.topRightCorner<3, 1>() - ref.topRightCorner<3, 1>()).norm();
 }
 
-// --bayes_previous: Bayesian ICP also with the sessions 6-9 default (no view gates,
-// CR1 sandwich, noise_sigma_scale 1.262), for the accuracy side by side.
+// --bayes_previous: Bayesian ICP also without the view gates, with the CR1 sandwich
+// and noise_sigma_scale 1.262 (the scale fitted for that model), for the accuracy side
+// by side.
 bool g_bayes_previous = false;
 
 Outcome RunOurs(const Pair& p, bool bayesian, double* bayes_ms, double* closed_ms,

@@ -1,22 +1,22 @@
-// Covariance calibration study (issue 5 item 6, scripts/bench_icp_covariance.sh).
+// Covariance calibration study (scripts/bench_icp_covariance.sh; docs/BENCHMARKS.md,
+// "Bayesian ICP covariance calibration").
 //
 // Simulated spinning-LiDAR scan pairs with exactly known relative pose
-// (icp/icp_sim_pairs.h: static poses, 1 cm range noise, initial-guess error 2 deg /
+// (icp/testing/sim_pairs.h: static poses, 1 cm range noise, initial-guess error 2 deg /
 // 10 cm per axis) in procedural scenes: three office-generator scenes for tuning
 // (the default office; an open-plan office of twice the footprint with 10 m rooms
 // and a 5 m corridor; a narrow office of 20 x 12 m with 3 m rooms, a 1.5 m corridor
-// and a 2.5 m ceiling; until session 5 the default office alone), from session 7 a
-// stair tower (test::StairTowerScene: a 6 x 4.4 m shaft of three storeys with a
-// switchback stair around an open well; a tuning check, reported with the tuning
-// scenes but not pooled in the scale fit), from session 8 a crate corridor
+// and a 2.5 m ceiling), a stair tower (test::StairTowerScene: a 6 x 4.4 m shaft of three
+// storeys with a switchback stair around an open well; a tuning check, reported with
+// the tuning scenes but not pooled in the scale fit), a crate corridor
 // (test::CrateCorridorScene: 14 x 2.6 m, door recesses, crates, cable tray; a second
-// tuning check of the same kind), hall and
-// staircase (held out; the staircase is the narrow, LiDAR-degenerate stairwell
-// with corridors), plus a held-out straight corridor without end walls in range
-// (translation along it unobservable: the degenerate case). For each pair: point-to-plane ICP, its closed-form covariance
-// (sigma^2 H^-1), the Censi sandwich, and Bayesian ICP (SGLD, re-associated
-// correspondences). Reported per method: coverage of the 95 % ellipsoid, mean and
-// median NEES (ideal 0.95 / 6 / 5.35 for 6 DoF) and time per pair.
+// tuning check of the same kind), hall and staircase (held out; the staircase is the
+// narrow, LiDAR-degenerate stairwell with corridors), plus a held-out straight corridor
+// without end walls in range (translation along it unobservable: the degenerate case).
+// For each pair: point-to-plane ICP, its closed-form covariance (sigma^2 H^-1), the
+// Censi sandwich, and Bayesian ICP (SGLD, re-associated correspondences). Reported per
+// method: coverage of the 95 % ellipsoid, mean and median NEES (ideal 0.95 / 6 / 5.35
+// for 6 DoF) and time per pair.
 //
 // Noise model (BayesianIcpOptions): the likelihood sigma of each pair is
 // estimated from that pair's data by the cluster-robust sandwich
@@ -25,36 +25,24 @@
 // plane-fit per-correspondence variance (plane_fit_variance) and the per-pair
 // rotation/translation block tempering (block_tempering). The "new default" rows
 // use the library defaults of this build (printed above the table), association
-// included (BayesianIcpOptions::icp: Cauchy 0.05 m, planarity gate 0.1, from session
-// 10 the field-of-view and visibility gates, and target
-// normals of BayesianIcpOptions::normal_neighbors = 20), except the scale, which is
+// included (BayesianIcpOptions::icp: Cauchy 0.05 m, planarity gate 0.1, the
+// field-of-view and visibility gates, and target normals of
+// BayesianIcpOptions::normal_neighbors = 20), except the scale, which is
 // re-fitted here, on the tuning scenes ONLY, before any held-out scene is
 // simulated: over the tuning pairs (seed 11) plus 3x as many further pairs (seed 31)
 // of every tuning scene, pooled, the geometric middle of the scales at which both
-// target bands hold (coverage 92-98 %, mean NEES 5-7; session 6; --target_mean M:
-// session 5's fixed-point step to mean NEES M on the tuning scenes). The session-3
-// and -4 rows keep the bench's earlier association (Huber 0.1 m, normals of 10
-// neighbours). num_correlation_cells and jackknife_leverage_power are the library
-// defaults (session 6: 48 cells and 0, the widest range of scales meeting both bands
-// on the three tuning scenes, from {24, 32, 48, 64, 96} with --cells and {1, 0.5, 0}
-// with --leverage_power; session 10: leverage power 1, the highest stair-tower
-// coverage with the view gates; --tune_grid prints a grid at scale 1, exploration only).
+// target bands hold (coverage 92-98 %, mean NEES 5-7; --target_mean M instead: one
+// fixed-point step to mean NEES M on the tuning scenes). num_correlation_cells and
+// jackknife_leverage_power are the library defaults (--cells and --leverage_power
+// override them; --tune_grid prints a grid of cell counts at scale 1, exploration only).
 // The hall, staircase and corridor pairs are simulated only after that. For
-// comparison: "old model A" (likelihood sigma = 3.15 x ICP residual sigma, session
-// 1), the session-3, -4 and -5 defaults, session 7's try, the sessions 6-9 default
-// (no view gates, CR1, 1.262), session 9's try (the field-of-view gate of
-// IcpOptions alone, scale 1.274 fitted with it), and "prior" rows
-// that add a Gaussian prior equal to the distribution the initial guess was drawn
-// from (2 deg / 10 cm per axis). --fresh H S adds hall / staircase
-// pairs of seeds H / S (fresh held-out sets; session 4 used 22/23 for its first
-// try and 32/33 for its second, the lead 42/43 for a third; session 5 52/53 for the
-// fourth and 62/63 for the fourth and fifth side by side, then 72/73 for the adopted
-// fifth alone; session 6 82/83 for its first try, 92/93 for its second, 102/103 for an
-// unselected run; session 7 112/113 for its try (refinement within 0.2 m, not
-// adopted); session 9 122/123 for its try (the field-of-view gate; it aborted on a
-// staircase pair, see IcpOptions::field_of_view_gate) and, fixed, 132/133 (not
-// adopted); session 10 142/143 for its try (both view gates and CR3; adopted) and
-// 152/153 for an unselected run of the adopted default. A new try needs new seeds).
+// comparison: "old model A" (likelihood sigma = 3.15 x ICP residual sigma), the i.i.d.
+// likelihood, alternative noise models and association variants (configured in Main;
+// each row's name gives its configuration), and "prior" rows that add a Gaussian prior
+// equal to the distribution the initial guess was drawn from (2 deg / 10 cm per axis).
+// --fresh H S adds hall / staircase pairs of seeds H / S (fresh held-out sets: a
+// configuration is evaluated once on seeds never used for a choice; the seeds used so
+// far are listed in docs/notes/icp_covariance_calibration_history.md).
 // Usage: lisfm_icp_covariance_bench [pairs_per_scene=100] [--fresh H S]
 //        [--cells G] [--scale C (skip the fit)] [--tune_only] [--tune_grid] [--timing]
 //        [--tune_scene S1,S2,... (office | office_open_plan | office_narrow | stair_tower |
@@ -94,7 +82,7 @@
 #include "icp/icp.h"
 #include "icp/icp_covariance.h"
 #include "icp/normals.h"
-#include "icp/icp_sim_pairs.h"
+#include "icp/testing/sim_pairs.h"
 
 namespace lisfm {
 namespace {
@@ -186,7 +174,7 @@ std::vector<PreparedPair> Prepare(const std::string& type, int count, uint32_t s
   if (open_plan) {
     // The office generator with large rooms, a wide corridor and a large open-plan
     // block (twice the default footprint): far walls and wide floor / ceiling
-    // expanses, a second office-type tuning scene (session 6).
+    // expanses, a second office-type tuning scene.
     scene_options.length = 80.0;
     scene_options.width = 48.0;
     scene_options.corridor_width = 5.0;
@@ -194,7 +182,7 @@ std::vector<PreparedPair> Prepare(const std::string& type, int count, uint32_t s
   }
   if (narrow) {
     // The office generator at its narrowest: small cluttered rooms, a 1.5 m corridor,
-    // a 2.5 m ceiling (exploration, session 6).
+    // a 2.5 m ceiling, the third office-type tuning scene.
     scene_options.length = 20.0;
     scene_options.width = 12.0;
     scene_options.height = 2.5;
@@ -205,8 +193,8 @@ std::vector<PreparedPair> Prepare(const std::string& type, int count, uint32_t s
   try {
     scene_options.Check("scene");
   } catch (const InputError& e) {
-    // sim's own Check rejects the staircase default width 2.8 m (lower bound 6 m,
-    // a sim bug at the time of writing): use the narrowest width it accepts.
+    // Should sim's own Check reject a default scene (a width below its lower bound),
+    // use 6 m, a width it accepts for every scene type.
     std::printf("note: default %s scene rejected (%s); using width 6 m\n", type.c_str(), e.what());
     scene_options.width = 6.0;
   }
@@ -215,8 +203,8 @@ std::vector<PreparedPair> Prepare(const std::string& type, int count, uint32_t s
   sim::WalkingRoute route;
   const std::unique_ptr<sim::Scene> scene =
       corridor ? test::CorridorScene(300, 3, 3)
-      : stair_tower ? test::StairTowerScene(1, &route)  // session 7 tuning scene
-      : crate_corridor ? test::CrateCorridorScene(1, &route)  // session 8 tuning scene
+      : stair_tower ? test::StairTowerScene(1, &route)  // tuning check
+      : crate_corridor ? test::CrateCorridorScene(1, &route)  // tuning check
                     : sim::Scene::Generate(scene_options);
   if (!corridor && !stair_tower && !crate_corridor) route = scene->route();
   test::SimScanPairOptions sim_options;
@@ -278,12 +266,10 @@ int g_fov_gate = -1;           // --fov_gate / --no_fov_gate: IcpOptions::field_
 double g_max_corr = -1;        // --max_corr (exploration)
 
 // --visibility TAU (exploration): IcpOptions::visibility_gate_m of the new default
-// (< 0: the library's). Until session 10 a bench-only range image (session 7: 0.5 deg
-// x 1 deg bins, re-decided at every pose; session 10: decided once per point), now
-// the library's.
+// (< 0: the library's).
 double g_visibility = -1;
 
-// Exploration (session 7, --patch K): FAST-LIO-style association: the K nearest
+// Exploration (--patch K): FAST-LIO-style association: the K nearest
 // target points of the query (within the correspondence distance) get a plane fit
 // (PCA); no match unless every one lies within 0.1 m of that plane (FAST-LIO2's
 // test); the match is the centroid with the fitted normal (towards the sensor).
@@ -321,7 +307,7 @@ class PatchPlaneTarget : public IcpTarget {
 };
 int g_patch = 0;  // --patch K (exploration)
 
-// The ICP of the closed forms and of the previous noise models (Huber 0.1 m, as
+// The ICP of the closed forms and of the baseline noise models (Huber 0.1 m, as
 // in the real-data benchmark).
 IcpOptions BenchIcpOptions() {
   IcpOptions o;
@@ -330,8 +316,8 @@ IcpOptions BenchIcpOptions() {
   return o;
 }
 
-// The association of the new default: BayesianIcpOptions' own (session 5: Cauchy
-// 0.05 m), with the exploration overrides.
+// The association of the new default: BayesianIcpOptions' own, with the exploration
+// overrides.
 IcpOptions NewDefaultIcpOptions() {
   IcpOptions o = BayesianIcpOptions().icp;
   if (g_min_planarity >= 0) o.min_planarity = g_min_planarity;
@@ -382,8 +368,8 @@ struct BayesConfig {
   bool block = false;        // block_tempering
   int iterations = 0;        // > 0: sgld.num_iterations (burn-in 10 %)
   bool new_default = false;  // the library's association (kernel, target normals) instead of the bench's Huber / k = 10
-  double min_planarity = -1;  // >= 0: overrides the new default's min_planarity (the session-5 default: 0)
-  double leverage_power = 1;  // jackknife_leverage_power (CR3 until session 6); < 0: the library's
+  double min_planarity = -1;  // >= 0: overrides the new default's min_planarity (0: no gate)
+  double leverage_power = 1;  // jackknife_leverage_power (1: CR3, 0: CR1); < 0: the library's
   double refine = -1;         // new default only: refine_max_correspondence_distance_m (< 0: --refine or the library's)
   int fov_gate = -1;          // new default only: IcpOptions::field_of_view_gate 0 / 1 (< 0: --fov_gate or the library's)
   double visibility = -1;     // new default only: IcpOptions::visibility_gate_m (< 0: --visibility or the library's)
@@ -615,7 +601,7 @@ void Timing(int count) {
         RegisterBayesian(pairs[k].source, target, pairs[k].initial, b);
     total_ms += Ms(t0);
     THROW_CHECK_GT(r.posterior.num_term_evaluations, 0u);
-    BayesianIcpOptions s3 = b;  // session-3 default: Huber 0.1 m, k = 10, 24 cells, 1.015
+    BayesianIcpOptions s3 = b;  // baseline: Huber 0.1 m, k = 10, 24 cells, 1.015
     s3.icp = BenchIcpOptions();
     s3.block_tempering = false;
     s3.plane_fit_variance = false;
@@ -636,7 +622,7 @@ void Timing(int count) {
 int Main(int argc, char** argv) {
   int count = 100;
   double fixed_scale = 0;
-  // > 0: fit the scale to this pooled mean NEES (session 5: 5.3); 0: the band rule below.
+  // > 0: fit the scale to this pooled mean NEES (e.g. 5.3); 0: the band rule below.
   double target_mean = 0;
   int fixed_cells = -1;
   bool tune_only = false;
@@ -744,8 +730,8 @@ int Main(int argc, char** argv) {
     sets.back().label = label;
     sets.back().role = role;
   };
-  // Tuning scenes (session 6: the office and the open-plan office; --tune_scene S
-  // tunes on S alone, exploration).
+  // Tuning scenes (the three office-generator scenes; --tune_scene S1,S2,... tunes on
+  // those alone, exploration).
   std::vector<std::string> tune_scenes = {"office", "office_open_plan", "office_narrow"};
   if (!g_tune_scene.empty()) {  // comma-separated list
     tune_scenes.clear();
@@ -758,10 +744,9 @@ int Main(int argc, char** argv) {
   }
   for (const std::string& t : tune_scenes) add_set(t, office_seed, t + " (tuning)", kTuning);
   const size_t num_tuning = tune_scenes.size();
-  // Session 7: the stair tower (icp_sim_pairs.h) is a tuning scene too, but not in
-  // the pooled scale fit: its few pairs in a wrong basin of the periodic stairs (NEES
-  // in the thousands) would decide any pooled mean. It chose the refinement distance
-  // (BayesianIcpOptions::refine_max_correspondence_distance_m) and is reported with
+  // The stair tower and the crate corridor (icp/testing/sim_pairs.h) are tuning checks,
+  // not in the pooled scale fit: the tower's few pairs in a wrong basin of the periodic
+  // stairs (NEES in the thousands) would decide any pooled mean. Both are reported with
   // the tuning scenes, before any held-out scene is simulated.
   if (g_tune_scene.empty()) {
     add_set("stair_tower", office_seed, "stair tower (tuning check, not in the scale fit)", kTuningCheck);
@@ -791,7 +776,7 @@ int Main(int argc, char** argv) {
   // The held-out scenes are simulated only after the tuning is done.
   for (size_t i = 0; i < num_prepared_first; ++i) prepare(sets[i]);
 
-  // Tuning of the new method on the office pairs only (order in the header comment).
+  // Tuning of the new method on the tuning scenes only (see the header comment).
   auto tuning_row = [&](const BayesConfig& config, size_t set) {
     std::vector<double> inflation, clusters;
     const MethodRun bayes = RunBayesian(sets[set].pairs, config, &inflation);
@@ -875,10 +860,10 @@ int Main(int argc, char** argv) {
     double coverage1 = 0;
     const double mean1 = stats_at(pooled, 1.0, &coverage1);
     if (target_mean > 0) {
-      // --target_mean M: one fixed-point step to pooled mean NEES M (session 5's rule, M = 5.3).
+      // --target_mean M: one fixed-point step to pooled mean NEES M.
       scale = std::sqrt(mean1 / target_mean);
     } else {
-      // Session 6 rule: the scales at which the pooled tuning pairs meet both target
+      // Band rule: the scales at which the pooled tuning pairs meet both target
       // bands (coverage of the 95 % ellipsoid in [92 %, 98 %], mean NEES in [5, 7]);
       // the geometric middle of the lowest and highest such scale (scan of 0.5-4 in
       // steps of 0.1 %). None: the fixed-point step to mean NEES 6.
@@ -927,14 +912,14 @@ int Main(int argc, char** argv) {
   tuned.scale = scale;
   BayesConfig tuned_prior = tuned;
   tuned_prior.prior = true;
-  BayesConfig session3;  // previous default (session 3): 24 cells, 1.015, no plane-fit variance
+  BayesConfig session3;  // Huber 0.1 m, k = 10, CR3, 24 cells, 1.015, no block tempering
   session3.cells = 24;
   session3.scale = 1.015;
-  BayesConfig session4;  // previous default (session 4): Huber 0.1 m, k = 10, block tempering, 1.049
+  BayesConfig session4;  // the same with block tempering, 1.049
   session4.cells = 24;
   session4.scale = 1.049;
   session4.block = true;
-  BayesConfig session5;  // previous default (session 5): Cauchy 0.05 m, k = 20, no planarity gate, 32 cells, 1.136
+  BayesConfig session5;  // library association without gates, CR3, 32 cells, 1.136
   session5.cells = 32;
   session5.scale = 1.136;
   session5.block = true;
@@ -943,7 +928,7 @@ int Main(int argc, char** argv) {
   session5.refine = 0;
   session5.fov_gate = 0;
   session5.visibility = 0;
-  BayesConfig session7 = session5;  // session-7 try (not adopted): the session-6 default + refinement within 0.2 m, 1.246
+  BayesConfig session7 = session5;  // planarity 0.1, 48 cells CR1, refine 0.2 m, 1.246
   session7.fov_gate = 0;
   session7.visibility = 0;
   session7.min_planarity = 0.1;
@@ -951,12 +936,12 @@ int Main(int argc, char** argv) {
   session7.cells = 48;
   session7.refine = 0.2;
   session7.scale = 1.246;
-  BayesConfig session6 = tuned;  // sessions 6-9 default: no gates, CR1 (leverage 0), 1.262
+  BayesConfig session6 = tuned;  // no view gates, CR1 (leverage 0), 1.262
   session6.fov_gate = 0;
   session6.visibility = 0;
   session6.leverage_power = 0;
   session6.scale = 1.262;
-  BayesConfig session9 = session6;  // session-9 try (not adopted): + the field-of-view gate, 1.274
+  BayesConfig session9 = session6;  // + the field-of-view gate alone, 1.274
   session9.fov_gate = 1;
   session9.scale = 1.274;
   BayesConfig old_a;

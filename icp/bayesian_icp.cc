@@ -100,7 +100,7 @@ IcpOptions BayesianDefaultIcpOptions() {
   options.kernel = "cauchy";
   options.kernel_scale_m = 0.05;
   options.min_planarity = 0.1;
-  options.field_of_view_gate = true;  // session 10 (bayesian_icp.h)
+  options.field_of_view_gate = true;  // why: see bayesian_icp.h
   options.visibility_gate_m = 0.1;
   return options;
 }

@@ -5,7 +5,7 @@
 
 #include "core/errors.h"
 #include "icp/icp_covariance.h"
-#include "icp/icp_test_scenes.h"
+#include "icp/testing/scenes.h"
 #include "tests/common/test_utils.h"
 
 namespace lisfm {
@@ -135,9 +135,9 @@ TEST(SampleSgld, GaussianPriorFillsUnobservedDirection) {
 
 // In a corridor the Bayesian posterior is wide along the axis (translation x)
 // and tight across it, and wider along the axis than the closed form, which
-// takes the accidental curvature of noisy normals for information. Measured
-// (session 4 defaults, block tempering on: factors 0.67 / 1.33): axial variance
-// 0.10 m^2 (Bayesian) vs 2.6e-6 m^2 (closed form), across 7e-7 m^2.
+// takes the accidental curvature of noisy normals for information. Measured with a
+// Huber 0.1 m association and 24 cells (block tempering on: factors 0.67 / 1.33): axial
+// variance 0.10 m^2 (Bayesian) vs 2.6e-6 m^2 (closed form), across 7e-7 m^2.
 TEST(RegisterBayesian, CorridorAxisIsUncertain) {
   const PointSet target = test::SampleCorridor(10.0, 3000, 0.005, test::Rng());
   const PointSet source = test::SampleCorridor(10.0, 3000, 0.005, test::Rng());

@@ -618,16 +618,13 @@ IcpResult RegisterPointToPlane(const PointSet& source,
   // Levels: every 2^(L-1) k-th, ..., 2k-th, k-th point (k = coarse_stride, L =
   // coarse_levels), each only if the subset keeps >= coarse_min_points points; then
   // all points.
-  // Why (session 8; before: L = 2 and 1200 = 100 min_inliers points): a coarse
-  // iteration far from the optimum matches mostly target points it has not matched
-  // before, and each of them costs a lazy normal (a 10-NN search and a 3x3
-  // eigensolve), so the first iterations should use as few points as still point
-  // the step the right way. BALM full36 (9579 source points) missed the 1/8 level by
-  // 3 points under the old rule; its 8 iterations at 1/4 (2.4k points) estimated
-  // 9.6k of the run's 13.7k target normals. With 600 points and a third level the
-  // real pairs converge to the same estimates (within the convergence thresholds),
-  // up to 1.2x faster (docs/BENCHMARKS.md, ICP, seventh speed round); the simulated
-  // office pairs (4.5-7k points) are as fast as before.
+  // Why L = 3 and 600 points: a coarse iteration far from the optimum matches mostly
+  // target points it has not matched before, and each of them costs a lazy normal (a
+  // 10-NN search and a 3x3 eigensolve), so the first iterations should use as few
+  // points as still point the step the right way. The real pairs converge to the same
+  // estimates (within the convergence thresholds) as with L = 2 and 1200 points, up to
+  // 1.26x faster on BALM pairs (docs/BENCHMARKS.md, "ICP registration vs PCL and
+  // Open3D").
   std::vector<size_t> strides;
   const size_t k = static_cast<size_t>(options.coarse_stride);
   for (int j = options.coarse_levels - 1; k > 1 && j >= 0; --j) {

@@ -8,8 +8,8 @@
 //   r = n^T (T p - q).
 // With T = T_hat Exp(xi) and Exp(xi) p ~ p + omega x p + v, and m = R_hat^T n:
 //   r(xi) ~ r + m^T(-[p]x omega + v)   =>   J = [ (p x m)^T , m^T ]   (1x6).
-// This is the issue's A_i = n_i^T [-[p_i]x  I] written in the source frame (the
-// right perturbation). Each iteration (one association of every source point of
+// This is A_i = n_i^T [-[p_i]x  I] written in the source frame (the right
+// perturbation). Each iteration (one association of every source point of
 // the current level) solves the 6x6 normal equations
 // (sum w J^T J) xi = -(sum w J^T r) by Cholesky (LDLT with a tiny Levenberg
 // damping so that degenerate directions do not blow up), then T <- T Exp(xi),
@@ -70,9 +70,9 @@ struct IcpOptions {
   double convergence_translation_m = 1e-4;   // ... and |v| is below (m)
   int min_inliers = 12;                      // fewer matches -> not converged
   int coarse_stride = 4;                     // k: the finest coarse level uses every k-th source point (1 = off)
-  // Coarse levels at most: every 2^(L-1) k-th, ..., 2k-th, k-th source point (session 8:
-  // 2 -> 3); a level is used only when its subset keeps at least coarse_min_points
-  // source points (session 8: 1200 -> 600). See icp.cc.
+  // Coarse levels at most: every 2^(L-1) k-th, ..., 2k-th, k-th source point; a level is
+  // used only when its subset keeps at least coarse_min_points source points. Why these
+  // values: see icp.cc.
   int coarse_levels = 3;
   int coarse_min_points = 600;
   double degeneracy_threshold = 0.02;        // min/max eigenvalue ratio of the translation Hessian; a tenth of it for the scaled 6x6 (see icp.cc)
@@ -81,18 +81,13 @@ struct IcpOptions {
   // target's viewpoint) at an elevation outside the 0.1-99.9 % range of the target
   // points' own elevations, or farther than the farthest target point. For scans in
   // their sensor frame with the spin axis along z (the vertical field of view of a
-  // spinning LiDAR). Why (session 9): such points still find the nearest surface
-  // the target did see and pull towards it; on the simulated stair tower that is
-  // another tread, and the Bayesian ICP's vertical error grew with the true vertical
-  // motion (correlation 0.59; 0.38 gated), its posterior-mean median error 9.7 ->
-  // 5.3 mm gated. RegisterPointToPlane decides the gate once per source point (at
-  // its first association, MatchState::in_view): re-decided at every pose, the gate
-  // let 1 of 100 staircase pairs drift until no point was in view. Off by default
-  // (a user's target need not be in its sensor frame). Alone as the Bayesian default
-  // (session 9) the fresh held-out coverage rose (87.0 -> 88.5 %) but the mean NEES
-  // did too (7.30 -> 7.74; docs/BENCHMARKS.md, ICP, covariance calibration, eighth
-  // round); with visibility_gate_m it is on in BayesianDefaultIcpOptions since
-  // session 10 (ninth round).
+  // spinning LiDAR). Why: such points still find the nearest surface the target did
+  // see and pull towards it; on stairs that is another tread, a vertical bias that
+  // grows with the vertical motion between the scans. RegisterPointToPlane decides
+  // the gate once per source point (at its first association, MatchState::in_view).
+  // Off by default (a user's target need not be in its sensor frame); on, with
+  // visibility_gate_m, in BayesianDefaultIcpOptions (docs/BENCHMARKS.md, "Bayesian ICP
+  // covariance calibration").
   bool field_of_view_gate = false;
   // KdTreeTarget only: no match for a source point (in the target frame) that lies
   // more than this (m) plus 2 % of its range behind the nearest target point in
@@ -100,12 +95,12 @@ struct IcpOptions {
   // scanned (a spherical range image of the target: bins of 0.5 deg azimuth x 1 deg
   // elevation, a 32-ring LiDAR's ring spacing; a bin without target points hides
   // nothing). 0 = off. Same scope and same once-per-source-point decision in
-  // RegisterPointToPlane as field_of_view_gate. Why (session 10): a source point on
-  // a surface the target could not see (a tread behind a flight of stairs) still
-  // finds the nearest surface the target did see. With field_of_view_gate, 0.1 m:
-  // the simulated stair tower's Bayesian coverage 54 -> 72 %, mean NEES 64.9 ->
-  // 15.1 (docs/BENCHMARKS.md, ICP, covariance calibration, ninth round). Off by
-  // default; on by default in BayesianDefaultIcpOptions.
+  // RegisterPointToPlane as field_of_view_gate. Why: a source point on a surface the
+  // target could not see (a tread behind a flight of stairs) still finds the nearest
+  // surface the target did see. Off by default; 0.1 m in BayesianDefaultIcpOptions,
+  // where with field_of_view_gate it raised the simulated stair tower's coverage of the
+  // 95 % ellipsoid from 55 to 72 % (docs/BENCHMARKS.md, "Bayesian ICP covariance
+  // calibration").
   double visibility_gate_m = 0.0;
   bool Check() const;
 };
@@ -158,8 +153,8 @@ class IcpTarget {
     // MatchCriteria::field_of_view_gate and visibility_gate_m, decided at the first
     // call and then kept (-1: not decided yet): a gate re-decided at every pose lets
     // a registration drift towards poses where fewer points are in view, since a
-    // point out of view costs nothing (session 9: 1 of 100 staircase pairs drifted to
-    // no match at all).
+    // point out of view costs nothing (1 of 100 simulated staircase pairs drifted to no
+    // match at all).
     int8_t in_view = -1;
   };
   // Match() with state carried across calls for one source point. The result

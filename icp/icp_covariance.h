@@ -115,7 +115,7 @@ struct ClusterSandwich {
   // whitened leverage capped at 0.95). Unlike CR1 it does not shrink when a few
   // large clusters dominate a direction (the residuals there were fitted by it).
   // With leverage_power p != 1 the whitened deltas are (I - A_c)^-p W g_c instead
-  // (p = 0: the centred CR1 form, what Bayesian ICP uses since session 6).
+  // (p = 0: the centred CR1 form).
   Mat6 jackknife_covariance = Mat6::Zero();
   // The G centred jackknife deltas (d_c - mean d) in parameter coordinates (the
   // one-step change of the estimate when cell c is left out, right perturbation):

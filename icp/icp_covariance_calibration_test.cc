@@ -1,7 +1,7 @@
 // Guards the calibration of the Bayesian ICP covariance on simulated scan pairs
 // of scenes that were NOT used to tune it (hall and staircase; the two constants
 // of the noise model were fitted on office pairs, see
-// icp/bench/icp_covariance_bench.cc and scripts/bench_icp_covariance.sh).
+// bench/icp_covariance_bench.cc and scripts/bench_icp_covariance.sh).
 #include <gtest/gtest.h>
 
 #include <cstdio>
@@ -9,30 +9,30 @@
 #include "core/errors.h"
 #include "icp/bayesian_icp.h"
 #include "icp/icp_covariance.h"
-#include "icp/icp_sim_pairs.h"
+#include "icp/testing/sim_pairs.h"
 
 namespace lisfm {
 namespace {
 
 struct HeldOutRuns {
-  // Library defaults (session 10: Cauchy 0.05 m with a planarity gate of 0.1 and the
-  // field-of-view and visibility gates, normals of 20 neighbours, 48-cell CR3
+  // Library defaults (BayesianIcpOptions: Cauchy 0.05 m with a planarity gate of 0.1
+  // and the field-of-view and visibility gates, normals of 20 neighbours, 48-cell CR3
   // sandwich sigma x 1.063, block tempering).
   std::vector<CovarianceSample> bayes;
-  // Session-4 default: Huber 0.1 m, normals of 10 neighbours, 24-cell sandwich sigma
-  // x 1.049, block tempering (reported).
+  // A baseline on the ICP's association: Huber 0.1 m, normals of 10 neighbours,
+  // 24-cell CR3 sandwich sigma x 1.049, block tempering (reported, not asserted).
   std::vector<CovarianceSample> session4;
-  std::vector<CovarianceSample> old_a;   // session-1 default: sigma = 3.15 x ICP residual sigma (Huber, k = 10)
+  std::vector<CovarianceSample> old_a;   // "old model A": sigma = 3.15 x ICP residual sigma
   std::vector<CovarianceSample> closed;  // sigma^2 H^-1 (Huber, k = 10)
 };
 
-// Same preprocessing and ICP options as icp/bench/icp_covariance_bench.cc.
+// Same preprocessing and ICP options as bench/icp_covariance_bench.cc.
 void RunPairs(const std::string& type, int count, uint32_t seed, HeldOutRuns* runs) {
   sim::SceneOptions scene_options = sim::DefaultSceneOptions(type);
   try {
     scene_options.Check("scene");
   } catch (const InputError&) {
-    scene_options.width = 6.0;  // as the benchmark: sim rejects the staircase default width
+    scene_options.width = 6.0;  // as the benchmark, should sim reject the default width
   }
   const std::unique_ptr<sim::Scene> scene = sim::Scene::Generate(scene_options);
   const std::vector<test::SimScanPair> pairs =
@@ -59,14 +59,14 @@ void RunPairs(const std::string& type, int count, uint32_t seed, HeldOutRuns* ru
                   r.icp.iterations, std::sqrt(c.topLeftCorner<3, 3>().trace()) * 180 / M_PI,
                   1e3 * std::sqrt(c.bottomRightCorner<3, 3>().trace()));
     }
-    // The previous models on their own association (Huber 0.1 m, k = 10).
+    // The baseline models on their own association (Huber 0.1 m, k = 10).
     const KdTreeTarget target10(target_points, NormalOptions{10, 1.0});
     BayesianIcpOptions s4 = options;
     s4.icp = IcpOptions();
     s4.icp.kernel_scale_m = 0.1;
     s4.noise_sigma_scale = 1.049;
     s4.num_correlation_cells = 24;
-    s4.jackknife_leverage_power = 1.0;  // CR3, as in session 4
+    s4.jackknife_leverage_power = 1.0;  // CR3
     const BayesianIcpResult t = RegisterBayesian(source, target10, pairs[k].initial, s4);
     runs->session4.push_back({t.posterior.mean, t.posterior.covariance, pairs[k].truth});
     runs->closed.push_back({t.icp.target_from_source, ClosedFormCovariance(t.icp), pairs[k].truth});
@@ -79,25 +79,17 @@ void RunPairs(const std::string& type, int count, uint32_t seed, HeldOutRuns* ru
 }
 
 // Mean NEES over 40 held-out pairs (20 hall, 20 staircase) must lie in [2, 10].
-// Over the benchmark's fresh held-out pairs (scripts/bench_icp_covariance.sh, 200
-// pairs each) the default measures mean NEES 7.6 (seeds 92/93, session 6; the
-// session-5 default 7.1-8.7 on seeds 62/63, 72/73, 92/93), the session-4 default
-// 7.8-8.9, the session-1 default "old model A" (likelihood sigma = 3.15 x the ICP
-// residual sigma, fitted on office) 12.8-14.0, the i.i.d. likelihood 130-150 and
-// the closed form 180-280. The upper limit 10 lies between the default's and old
-// model A's 200-pair means, so the test fails if the per-pair inflation is lost
-// (i.i.d.: ~10x over) or falls back to a constant scale like the old model. NEES is
-// heavy-tailed (one pair reaches 30-40), so this is a regression guard for the
-// deterministic pairs below, not a statistical acceptance test. History: until
-// session 5 it used 12 pairs (the first 6 of each set here); the fourth try of
-// session 5 (24 cells) measured 11.0 on those (two pairs at NEES 34, coverage 8/12)
-// while the session-4 default measured 5.2 (12/12), the reverse of their order on
-// 200 fresh pairs. It was enlarged to 40 pairs with the limit unchanged (fourth try
-// 8.81, coverage 80 %; session-5 default 8.23, 85 %). Measured with the sessions 6-9
-// default: 8.10 (coverage 82 %, median 6.27); with the session-10 default: 8.94
-// (coverage 82 %, median 5.90; one staircase pair slid 0.9 m along its corridor has
-// NEES 39), while over 200 fresh pairs it measures 6.72 (seeds 152/153, sessions 6-9
-// default 8.12); session-4 default 7.35 (85 %), old model A 11.89, closed form 196.0.
+// On these pairs the default measures 8.94 (coverage 82 %, median 5.90; one staircase
+// pair slid 0.9 m along its corridor has NEES 39). Over 200 fresh held-out pairs of the
+// benchmark (docs/BENCHMARKS.md, "Bayesian ICP covariance calibration") the default
+// measures 6.72, the baseline 7.35-8.9, "old model A" (likelihood sigma = 3.15 x the ICP
+// residual sigma, fitted on office) 11.9-14.0, the i.i.d. likelihood 130-150 and the
+// closed form 180-280. The upper limit 10 lies between the default's and old model A's
+// 200-pair means, so the test fails if the per-pair inflation is lost (i.i.d.: ~10x
+// over) or falls back to a constant scale like old model A. NEES is heavy-tailed (one
+// pair reaches 30-40), so this is a regression guard for the deterministic pairs below,
+// not a statistical acceptance test; 40 pairs rather than 12 because on 12 of them two
+// noise models ranked in the reverse order of their 200-pair means.
 // The lower limit 2 catches a covariance ~3x too large in variance.
 TEST(CovarianceCalibration, BayesianIsCalibratedOnHeldOutScenes) {
   HeldOutRuns runs;
@@ -114,8 +106,8 @@ TEST(CovarianceCalibration, BayesianIsCalibratedOnHeldOutScenes) {
               c.mean_nees);
   EXPECT_GT(b.mean_nees, 2.0) << "coverage " << b.coverage_95 << " median " << b.median_nees;
   EXPECT_LT(b.mean_nees, 10.0) << "coverage " << b.coverage_95 << " median " << b.median_nees;
-  // The band discriminates: the previous default and the closed form miss it on
-  // the same pairs.
+  // The band discriminates: old model A and the closed form miss it on the same
+  // pairs.
   EXPECT_GT(o.mean_nees, 10.0) << "old model coverage " << o.coverage_95 << " median "
                                << o.median_nees;
   EXPECT_GT(c.mean_nees, 10.0) << "closed form median " << c.median_nees;

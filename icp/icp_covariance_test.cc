@@ -8,7 +8,7 @@
 #include <unordered_map>
 
 #include "core/errors.h"
-#include "icp/icp_test_scenes.h"
+#include "icp/testing/scenes.h"
 #include "tests/common/test_utils.h"
 
 namespace lisfm {

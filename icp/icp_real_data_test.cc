@@ -75,14 +75,14 @@ double PointToPointRms(const PointSet& source, const KdTree& target, const SE3& 
   return std::sqrt(sum / std::max(count, 1));
 }
 
-// Why point-to-plane with 10-neighbour normals lands 2.9 deg / 2.7 mm from the
-// README's reference (as do PCL IterativeClosestPointWithNormals and Open3D
-// point-to-plane, see docs/BENCHMARKS.md (ICP section)): the reference is the optimum of a
-// different objective. Measured (397 matches each): point-to-point RMS 6.35 mm at
-// the reference vs 6.71 mm at our result; point-to-plane RMS 4.05 mm at the
-// reference vs 3.53 mm at our result. Each transform is the better one for its
-// own objective; this partial-overlap pair is weakly constrained in rotation, so
-// the two optima differ by ~3 deg. The test asserts that ordering.
+// Why point-to-plane with 10-neighbour normals lands 2.9 deg / 2.7 mm from the README's
+// reference (as do PCL IterativeClosestPointWithNormals and Open3D point-to-plane, see
+// docs/BENCHMARKS.md, "ICP registration vs PCL and Open3D"): the reference is the
+// optimum of a different objective. Measured (397 matches each): point-to-point RMS
+// 6.35 mm at the reference vs 6.71 mm at our result; point-to-plane RMS 4.05 mm at the
+// reference vs 3.53 mm at our result. Each transform is the better one for its own
+// objective; this partial-overlap pair is weakly constrained in rotation, so the two
+// optima differ by ~3 deg. The test asserts that ordering.
 TEST(IcpRealData, BunnyReferenceIsThePointToPointOptimum) {
   LISFM_REQUIRE_SHARED_DATA("pointclouds_pcl/bun0.pcd");
   const std::string dir = test::SharedData("pointclouds_pcl");
@@ -103,13 +103,12 @@ TEST(IcpRealData, BunnyReferenceIsThePointToPointOptimum) {
             PointToPointRms(source, target.tree(), ours.target_from_source));
 }
 
-// Within 5 mm / 1 deg of PCL's reference result for bun0 -> bun4 (README), the
-// issue's tolerance. The clouds are sparse (361/397 points, ~4 mm apart, with
-// range noise): normals from 10 neighbours are noisy enough to tilt the
-// point-to-plane optimum by ~3 deg (test above). With normals from 20 or 30
-// neighbours (still a local patch: ~2 cm on a 15 cm bunny) both land within
-// 0.6 / 0.9 deg and 1.6 / 1.0 mm of the reference. Only the 0.05 m gate rejects
-// outliers, as in PCL's run.
+// Within 5 mm / 1 deg of PCL's reference result for bun0 -> bun4 (README). The clouds
+// are sparse (361/397 points, ~4 mm apart, with range noise): normals from 10
+// neighbours are noisy enough to tilt the point-to-plane optimum by ~3 deg (test
+// above). With normals from 20 or 30 neighbours (still a local patch: ~2 cm on a 15 cm
+// bunny) both land within 0.6 / 0.9 deg and 1.6 / 1.0 mm of the reference. Only the
+// 0.05 m gate rejects outliers, as in PCL's run.
 TEST(IcpRealData, BunnyPair) {
   LISFM_REQUIRE_SHARED_DATA("pointclouds_pcl/bun0.pcd");
   const std::string dir = test::SharedData("pointclouds_pcl");

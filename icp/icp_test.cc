@@ -7,7 +7,7 @@
 
 #include "core/errors.h"
 #include "icp/icp_covariance.h"
-#include "icp/icp_test_scenes.h"
+#include "icp/testing/scenes.h"
 #include "tests/common/test_utils.h"
 
 namespace lisfm {

@@ -30,7 +30,7 @@ struct VoxelKeyHash {
 }  // namespace
 
 // lisfm's own static 3-D KD-tree, the engine behind KdTree (chosen by benchmark
-// over nanoflann 1.4.3 and FLANN; `lisfm_icp_bench --knn`, docs/BENCHMARKS.md).
+// over nanoflann 1.4.3 and FLANN; `lisfm_icp_bench --knn`, nearest_neighbors.h).
 // - Build: median split (nth_element) along the widest side of the node's cell,
 //   leaves of at most kLeafSize points. The points are permuted in place as
 //   (x, y, z, index) records, so at the end they lie in leaf order, each leaf one

@@ -4,13 +4,13 @@
 // deliver, halves memory traffic, and is accurate to < 1 um at 100 m. The tree is
 // lisfm's own static KD-tree (exact search; median splits, leaves of 24 points
 // stored contiguously in leaf order, parallel build; nearest_neighbors.cc). Chosen by
-// benchmark (`lisfm_icp_bench DATA --knn`, scripts/bench_icp.sh, docs/BENCHMARKS.md
-// ICP section): on the ICP's own queries over a downsampled BALM scan (10-NN at
-// target points, 2-NN of source points) it is ~1.25x faster than nanoflann 1.4.3
-// (which had been chosen over FLANN's exact single KD-tree, 1.3-1.5x slower than
-// nanoflann), builds in parallel, and takes ~13 % off a whole registration. FLANN's
-// randomised forests are approximate, which ICP's residual statistics and the
-// covariances do not tolerate. nanoflann stays the reference in the benchmark.
+// benchmark (`lisfm_icp_bench DATA --knn`, scripts/bench_icp.sh, docs/BENCHMARKS.md,
+// "ICP registration vs PCL and Open3D"): on the ICP's own queries over a downsampled
+// BALM scan (10-NN at target points, 2-NN of source points) it is ~1.25x faster than
+// nanoflann 1.4.3 (itself 1.3-1.5x faster than FLANN's exact single KD-tree), builds in
+// parallel, and takes ~13 % off a whole registration. FLANN's randomised forests are
+// approximate, which ICP's residual statistics and the covariances do not tolerate.
+// nanoflann and FLANN stay the references in the benchmark.
 //
 // Threads: a built KdTree is immutable; all queries are const and thread-safe.
 // Failures: constructing from a point set with non-finite coordinates throws

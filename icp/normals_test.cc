@@ -5,7 +5,7 @@
 #include <gtest/gtest.h>
 
 #include "icp/icp.h"
-#include "icp/icp_test_scenes.h"
+#include "icp/testing/scenes.h"
 #include "tests/common/test_utils.h"
 
 namespace lisfm {

@@ -9,12 +9,6 @@
 
 namespace lisfm {
 
-std::vector<LidarScanInput> LidarFrame::Inputs() const {
-  std::vector<LidarScanInput> inputs;
-  for (size_t c = 0; c < clouds.size(); ++c) inputs.push_back({sensor_ids[c], &clouds[c]});
-  return inputs;
-}
-
 LidarFrameReader::LidarFrameReader(const Sequence& sequence, std::vector<int> lidars)
     : sequence_(sequence), lidars_(std::move(lidars)), next_scan_(sequence.lidar_scans.size(), 0) {
   if (lidars_.empty()) throw InputError("no LiDAR selected");
@@ -58,14 +52,6 @@ bool LidarFrameReader::Next(LidarFrame* frame) {
                                                 SecondsToNs(t_max));
   }
   return true;
-}
-
-void LidarFrameReader::FeedImuUntil(TimestampNs t_ns, LioOdometry* odometry) {
-  const auto& imu = sequence_.imu;
-  while (next_imu_ < imu.size() &&
-         (odometry->LatestImuTime() < t_ns || imu[next_imu_].t_ns <= t_ns)) {
-    odometry->AddImu(imu[next_imu_++]);
-  }
 }
 
 }  // namespace lisfm

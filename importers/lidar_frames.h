@@ -1,27 +1,17 @@
-// Turns a sequence folder's LiDAR scans and IMU samples into the input stream
-// of the odometry (lio/lio_odometry.h): one frame per scan of the primary
-// LiDAR, joined by the scans of the other selected LiDARs that started after
-// the previous primary scan and not after this one (so each secondary scan is
-// used once, in the frame whose update is closest to it). Used by `lisfm lio`
-// and the LIO tests, so both run exactly the same loop.
+// Turns a sequence folder's LiDAR scans into LiDAR frames (core/sensor_data.h):
+// one frame per scan of the primary LiDAR, joined by the scans of the other
+// selected LiDARs that started after the previous primary scan and not after
+// this one (so each secondary scan is used once, in the frame whose update is
+// closest to it). The caller hands the frames and the sequence's IMU samples to
+// an estimator (lio/imu_feeder.h).
 #pragma once
 
 #include <vector>
 
-#include "core/point_cloud.h"
+#include "core/sensor_data.h"
 #include "importers/sequence.h"
-#include "lio/lio_odometry.h"
 
 namespace lisfm {
-
-struct LidarFrame {
-  std::vector<PointCloud> clouds;  // sensor frames; stamp_ns from the file name
-  std::vector<int> sensor_ids;     // rig LiDAR index of each cloud
-  TimestampNs end_ns = 0;          // latest point time on the IMU clock
-
-  // Views for LioOdometry::ProcessFrame (valid while this frame lives).
-  std::vector<LidarScanInput> Inputs() const;
-};
 
 class LidarFrameReader {
  public:
@@ -30,11 +20,9 @@ class LidarFrameReader {
   LidarFrameReader(const Sequence& sequence, std::vector<int> lidars);
 
   size_t num_frames() const;
-  // Reads the next frame's clouds (PCD files); false after the last frame.
+  // Reads the next frame's clouds (PCD files; stamp_ns from the file name);
+  // false after the last frame.
   bool Next(LidarFrame* frame);
-  // Hands `odometry` every IMU sample up to and including the first one after
-  // `t_ns` (so the IMU covers t_ns when the data does).
-  void FeedImuUntil(TimestampNs t_ns, LioOdometry* odometry);
 
  private:
   const Sequence& sequence_;
@@ -42,7 +30,6 @@ class LidarFrameReader {
   size_t next_frame_ = 0;
   std::vector<size_t> next_scan_;
   TimestampNs previous_primary_ns_ = INT64_MIN;
-  size_t next_imu_ = 0;
 };
 
 }  // namespace lisfm

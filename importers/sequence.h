@@ -13,7 +13,7 @@
 
 #include "core/point_cloud.h"
 #include "core/rig.h"
-#include "lio/imu.h"
+#include "core/sensor_data.h"
 
 namespace lisfm {
 

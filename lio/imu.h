@@ -9,15 +9,10 @@
 #include <vector>
 
 #include "core/geometry.h"
+#include "core/sensor_data.h"
 #include "core/time.h"
 
 namespace lisfm {
-
-struct ImuSample {
-  TimestampNs t_ns = 0;
-  Vec3 gyro = Vec3::Zero();  // rad/s, body frame
-  Vec3 accel = Vec3::Zero();  // specific force, m/s^2 (or g, see ImuInitializerOptions)
-};
 
 struct ImuInitializerOptions {
   double min_duration_s = 0.5;       // stationary window length needed (s)

@@ -28,6 +28,7 @@
 #include "core/geometry.h"
 #include "core/point_cloud.h"
 #include "core/rig.h"
+#include "core/sensor_data.h"
 #include "lio/imu.h"
 #include "lio/voxel_map.h"
 
@@ -96,12 +97,6 @@ struct LioFrameResult {
   bool is_keyframe = false;
 };
 
-// A LiDAR frame: one or several scans (different sensors) processed as one update.
-struct LidarScanInput {
-  int sensor_id = 0;      // index into the extrinsics given to the constructor
-  const PointCloud* cloud = nullptr;  // sensor frame; stamp = first point; t per point
-};
-
 struct Keyframe {
   TimestampNs t_ns = 0;
   SE3 world_from_imu;
@@ -126,8 +121,10 @@ class LioOdometry {
   // initialisation or when the IMU does not cover t_ns yet.
   std::optional<SE3> Predict(TimestampNs t_ns);
 
-  // Processes one frame. Every point's absolute time must be covered by IMU
-  // data already added (otherwise the frame is skipped with a message).
+  // Processes one frame (LidarFrame::Inputs(); sensor_id indexes the
+  // extrinsics given to the constructor). Every point's absolute time must be
+  // covered by IMU data already added (otherwise the frame is skipped with a
+  // message).
   LioFrameResult ProcessFrame(const std::vector<LidarScanInput>& scans);
 
   bool initialized() const { return initialized_; }

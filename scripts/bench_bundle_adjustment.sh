@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Bundle adjustment solvers side by side (issue 7): `lisfm global_mapper` on the
+# Bundle adjustment solvers side by side: `lisfm global_mapper` on the
 # same COLMAP database with --BundleAdjustment.solver ceres (Ceres DENSE_SCHUR)
 # and schur (lisfm's dense-Schur Levenberg-Marquardt), alternating, REPEATS
 # times each; prints one markdown table of the final full bundle adjustment

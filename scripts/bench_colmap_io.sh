@@ -3,18 +3,15 @@
 # track length 4) with `lisfm model_converter` and stock `colmap model_converter`
 # on the same files, side by side. Prints a table for docs/BENCHMARKS.md.
 #
-#   scripts/bench_colmap_io.sh [build_dir] [num_images] [num_points] [repeats]
+#   scripts/bench_colmap_io.sh [num_images] [num_points] [repeats]
 set -euo pipefail
-BUILD=${1:-build}
-IMAGES=${2:-1000}
-POINTS=${3:-500000}
-REPEATS=${4:-3}
-LISFM="$BUILD/apps/lisfm"
-SYNTH="$BUILD/colmap_ext/lisfm_colmap_synth"
+source "$(dirname "${BASH_SOURCE[0]}")/common.sh"
+IMAGES=${1:-1000}
+POINTS=${2:-500000}
+REPEATS=${3:-3}
+lisfm_build_bench lisfm lisfm_colmap_synth
+SYNTH="$LISFM_BUILD_DIR/bench/lisfm_colmap_synth"
 COLMAP=$(command -v colmap || true)
-for b in "$LISFM" "$SYNTH"; do
-  [ -x "$b" ] || { echo "error: $b not built (cmake --build $BUILD --target lisfm lisfm_colmap_synth)" >&2; exit 1; }
-done
 [ -n "$COLMAP" ] || echo "warning: stock colmap not found; only lisfm is timed" >&2
 export QT_QPA_PLATFORM=offscreen
 WORK=$(mktemp -d /tmp/bench_colmap_io.XXXXXX)

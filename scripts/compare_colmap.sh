@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Stock `colmap mapper` vs `lisfm global_mapper` on the same COLMAP database,
-# per real data set, side by side (issue 7). Prints one markdown table for
+# per real data set, side by side. Prints one markdown table for
 # docs/BENCHMARKS.md (also written to WORK_DIR/compare_colmap.md).
 #
 #   scripts/compare_colmap.sh [--work_dir DIR] [--datasets a,b,...] [--rebuild]

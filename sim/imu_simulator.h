@@ -11,18 +11,13 @@
 #include <vector>
 
 #include "core/rig.h"
+#include "core/sensor_data.h"
 #include "sim/spline_trajectory.h"
 
 namespace lisfm {
 namespace sim {
 
 constexpr double kGravity = 9.81;  // m/s^2, along -z of the scene frame
-
-struct ImuSample {
-  TimestampNs t_ns = 0;
-  Vec3 gyro = Vec3::Zero();   // rad/s, IMU frame
-  Vec3 accel = Vec3::Zero();  // m/s^2 specific force, IMU frame
-};
 
 struct ImuBias {
   TimestampNs t_ns = 0;

@@ -1,5 +1,5 @@
-// End-to-end tests of `lisfm simulate` (the command and sim::Simulate):
-// folder layout, readability by the core readers, determinism, bad input.
+// sim::Simulate end to end: folder layout, readability by the core readers,
+// determinism, real trajectories.
 #include "sim/simulator.h"
 
 #include <filesystem>
@@ -142,34 +142,6 @@ TEST(Simulate, FollowsARealTumTrajectory) {
     const SE3 expected(input[i].pose.rotation(), input[i].pose.translation() + offset);
     EXPECT_TRUE(test::PosesNear(*p, expected, M_PI / 180, 0.03)) << "sample " << i;
   }
-}
-
-// Bad configuration through the real command: clear error, non-zero exit, no output.
-TEST(SimulateCommand, BadConfigurationFailsClearly) {
-  test::TempDir dir;
-  const std::string bin = test::LisfmBinary();
-  std::string out;
-  const std::string common = " --duration 2 --camera_rate 0 --output_path " + dir.File("o");
-  EXPECT_NE(test::RunCommand(bin + " simulate --scene moon" + common, &out), 0);
-  EXPECT_NE(out.find("moon"), std::string::npos) << out;
-  EXPECT_NE(test::RunCommand(bin + " simulate --camera_rate -1 --output_path " + dir.File("o"),
-                             &out), 0);
-  EXPECT_NE(out.find("camera_rate"), std::string::npos) << out;
-  // A rig YAML missing a required field.
-  test::WriteText(dir.File("rig.yaml"),
-                  "cam0:\n  distortion_model: equidistant\n  distortion_coeffs: [0, 0, 0, 0]\n"
-                  "  resolution: [720, 540]\n  T_cam_imu: [[1,0,0,0],[0,1,0,0],[0,0,1,0],"
-                  "[0,0,0,1]]\n");
-  EXPECT_NE(test::RunCommand(bin + " simulate --rig_path " + dir.File("rig.yaml") + common,
-                             &out), 0);
-  EXPECT_NE(out.find("intrinsics"), std::string::npos) << out;
-  // A trajectory file with unsorted times.
-  test::WriteText(dir.File("bad.txt"),
-                  "10.0 0 0 1 0 0 0 1\n10.2 0 0 1 0 0 0 1\n10.1 0 0 1 0 0 0 1\n");
-  EXPECT_NE(test::RunCommand(bin + " simulate --trajectory_path " + dir.File("bad.txt") +
-                                 " --scene hall" + common, &out), 0);
-  EXPECT_NE(out.find("line 3"), std::string::npos) << out;
-  EXPECT_FALSE(fs::exists(dir.File("o")));
 }
 
 }  // namespace

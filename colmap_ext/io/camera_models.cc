@@ -1,4 +1,4 @@
-#include "colmap_ext/camera_models.h"
+#include "colmap_ext/io/camera_models.h"
 
 #include <cmath>
 

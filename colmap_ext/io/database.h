@@ -39,8 +39,8 @@
 
 #include <Eigen/Core>
 
-#include "colmap_ext/camera_models.h"
-#include "colmap_ext/reconstruction.h"
+#include "colmap_ext/io/camera_models.h"
+#include "colmap_ext/io/reconstruction.h"
 #include "core/types.h"
 
 struct sqlite3;

@@ -1,4 +1,4 @@
-#include "colmap_ext/database.h"
+#include "colmap_ext/io/database.h"
 
 #include <cstring>
 #include <functional>

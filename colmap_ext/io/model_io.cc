@@ -1,4 +1,4 @@
-#include "colmap_ext/model_io.h"
+#include "colmap_ext/io/model_io.h"
 
 #include <cerrno>
 #include <cinttypes>

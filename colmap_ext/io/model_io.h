@@ -25,7 +25,7 @@
 
 #include <string>
 
-#include "colmap_ext/reconstruction.h"
+#include "colmap_ext/io/reconstruction.h"
 
 namespace lisfm {
 namespace colmap {

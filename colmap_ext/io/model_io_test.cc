@@ -1,11 +1,11 @@
-#include "colmap_ext/model_io.h"
+#include "colmap_ext/io/model_io.h"
 
 #include <cstring>
 #include <functional>
 
 #include <gtest/gtest.h>
 
-#include "colmap_ext/synthetic.h"
+#include "colmap_ext/testing/synthetic.h"
 #include "core/errors.h"
 #include "core/file_utils.h"
 #include "tests/common/test_utils.h"

@@ -1,4 +1,4 @@
-#include "colmap_ext/reconstruction.h"
+#include "colmap_ext/io/reconstruction.h"
 
 #include <algorithm>
 #include <cmath>

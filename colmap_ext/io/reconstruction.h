@@ -23,7 +23,7 @@
 #include <unordered_map>
 #include <vector>
 
-#include "colmap_ext/camera_models.h"
+#include "colmap_ext/io/camera_models.h"
 #include "core/geometry.h"
 
 namespace lisfm {

@@ -1,4 +1,4 @@
-#include "colmap_ext/rig_config.h"
+#include "colmap_ext/io/rig_config.h"
 
 #include <nlohmann/json.hpp>
 

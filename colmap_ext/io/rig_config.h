@@ -15,7 +15,7 @@
 #include <string>
 #include <vector>
 
-#include "colmap_ext/camera_models.h"
+#include "colmap_ext/io/camera_models.h"
 #include "core/rig.h"
 
 namespace lisfm {

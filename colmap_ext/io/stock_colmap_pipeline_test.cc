@@ -6,10 +6,10 @@
 
 #include <gtest/gtest.h>
 
-#include "colmap_ext/database.h"
-#include "colmap_ext/model_io.h"
-#include "colmap_ext/stock_colmap_test_utils.h"
-#include "colmap_ext/synthetic.h"
+#include "colmap_ext/io/database.h"
+#include "colmap_ext/io/model_io.h"
+#include "colmap_ext/testing/stock_colmap.h"
+#include "colmap_ext/testing/synthetic.h"
 #include "core/file_utils.h"
 #include "tests/common/test_utils.h"
 

@@ -1,4 +1,4 @@
-#include "colmap_ext/bundle_adjustment.h"
+#include "colmap_ext/sfm/bundle_adjustment.h"
 
 #include <ceres/ceres.h>
 
@@ -14,8 +14,8 @@
 #include <unordered_map>
 #include <vector>
 
-#include "colmap_ext/camera_model_functors.h"
-#include "colmap_ext/schur_bundle_adjuster.h"
+#include "colmap_ext/sfm/camera_model_functors.h"
+#include "colmap_ext/sfm/schur_bundle_adjuster.h"
 #include "core/errors.h"
 #include "core/logging.h"
 

@@ -1,4 +1,4 @@
-// Rig bundle adjustment of `lisfm global_mapper` (issue 7, stage 5).
+// Rig bundle adjustment of `lisfm global_mapper` (stage 5).
 //
 // Unknowns (mapper_state.h's rig model):
 //  - per registered frame: rig_from_world, a unit quaternion on
@@ -47,7 +47,7 @@
 #include <cmath>
 #include <string>
 
-#include "colmap_ext/mapper_state.h"
+#include "colmap_ext/sfm/mapper_state.h"
 
 namespace lisfm {
 namespace colmap {

@@ -1,4 +1,4 @@
-#include "colmap_ext/bundle_adjustment.h"
+#include "colmap_ext/sfm/bundle_adjustment.h"
 
 #include <gtest/gtest.h>
 

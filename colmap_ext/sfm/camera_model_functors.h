@@ -25,7 +25,7 @@
 #include <utility>
 #include <vector>
 
-#include "colmap_ext/camera_models.h"
+#include "colmap_ext/io/camera_models.h"
 #include "core/errors.h"
 #include "core/geometry.h"
 

@@ -1,4 +1,4 @@
-#include "colmap_ext/camera_model_functors.h"
+#include "colmap_ext/sfm/camera_model_functors.h"
 
 #include <gtest/gtest.h>
 

@@ -1,4 +1,4 @@
-#include "colmap_ext/global_mapper.h"
+#include "colmap_ext/sfm/global_mapper.h"
 
 #include <algorithm>
 #include <chrono>

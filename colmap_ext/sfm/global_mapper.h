@@ -1,4 +1,4 @@
-// `lisfm global_mapper`: global SfM on a COLMAP database (issue 7).
+// `lisfm global_mapper`: global SfM on a COLMAP database.
 //
 // Stages (each in its own header, all acting on one MapperState):
 //   LoadMapperState (cameras, images, keypoints, priors, rig frames)
@@ -26,16 +26,16 @@
 
 #include <nlohmann/json.hpp>
 
-#include "colmap_ext/bundle_adjustment.h"
-#include "colmap_ext/database.h"
-#include "colmap_ext/lidar_constraints.h"
-#include "colmap_ext/mapper_state.h"
-#include "colmap_ext/reconstruction.h"
-#include "colmap_ext/rotation_averaging.h"
-#include "colmap_ext/tracks.h"
-#include "colmap_ext/translation_averaging.h"
-#include "colmap_ext/triangulation.h"
-#include "colmap_ext/view_graph.h"
+#include "colmap_ext/sfm/bundle_adjustment.h"
+#include "colmap_ext/io/database.h"
+#include "colmap_ext/sfm/lidar_constraints.h"
+#include "colmap_ext/sfm/mapper_state.h"
+#include "colmap_ext/io/reconstruction.h"
+#include "colmap_ext/sfm/rotation_averaging.h"
+#include "colmap_ext/sfm/tracks.h"
+#include "colmap_ext/sfm/translation_averaging.h"
+#include "colmap_ext/sfm/triangulation.h"
+#include "colmap_ext/sfm/view_graph.h"
 
 namespace lisfm {
 
@@ -57,8 +57,8 @@ struct GlobalMapperOptions {
   BundleAdjustmentOptions bundle_adjustment;
   // Rounds of bundle adjustment → filter → retriangulate before the final BA.
   // One is enough: on the five real data sets of scripts/compare_colmap.sh a
-  // second subsampled round changed no camera error in the 3rd digit
-  // (docs/BENCHMARKS.md) but took up to 30 more iterations.
+  // second subsampled round changed no camera error in the 3rd digit but took up to
+  // 30 more iterations (docs/BENCHMARKS.md, "global_mapper vs stock colmap mapper").
   int num_refinement_rounds = 1;
   // Relative cost change at which the (subsampled) refinement rounds stop;
   // the final full adjustment starts from there. 1e-4 gave the same camera

@@ -1,12 +1,12 @@
 // End-to-end tests of RunGlobalMapper on synthetic databases with exact
 // ground truth (colmap_ext/sfm_synthetic.h): all stages together.
-#include "colmap_ext/global_mapper.h"
+#include "colmap_ext/sfm/global_mapper.h"
 
 #include <cmath>
 
 #include <gtest/gtest.h>
 
-#include "colmap_ext/sfm_synthetic.h"
+#include "colmap_ext/testing/sfm_synthetic.h"
 #include "core/errors.h"
 #include "core/io/rig_io.h"
 #include "tests/common/test_utils.h"
@@ -97,7 +97,7 @@ TEST(GlobalMapper, RigWithPriorsAndLidarConstraintsIsMetric) {
   o.pixel_noise = 0.5;
   o.max_frame_gap = 3;
   o.outlier_match_ratio = 0.05;
-  // What a LiDAR stage gives (issue 7): priors 2 cm / 0.5 deg, constraints
+  // What a LiDAR stage gives: priors 2 cm / 0.5 deg, constraints
   // 5 mm / 0.1 deg.
   o.prior_position_noise = 0.02;
   o.prior_rotation_noise = 0.5 * M_PI / 180.0;
@@ -122,7 +122,7 @@ TEST(GlobalMapper, RigWithPriorsAndLidarConstraintsIsMetric) {
   EXPECT_EQ(model.NumImages(), scene.gt_cam_from_world.size());
   EXPECT_EQ(model.Frames().size(), static_cast<size_t>(o.num_frames));
   EXPECT_EQ(model.Rigs().size(), 1u);
-  // Issue 7 targets after an SE(3) alignment: 0.05 deg, 5 mm.
+  // Accuracy targets after an SE(3) alignment: 0.05 deg, 5 mm.
   const PoseErrors se3 = Evaluate(model, scene, /*estimate_scale=*/false);
   EXPECT_LT(se3.max_rotation_deg, 0.05);
   EXPECT_LT(se3.max_position, 0.005);

@@ -1,4 +1,4 @@
-#include "colmap_ext/mapper_state.h"
+#include "colmap_ext/sfm/mapper_state.h"
 
 #include <algorithm>
 #include <cmath>

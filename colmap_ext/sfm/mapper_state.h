@@ -1,4 +1,4 @@
-// The state shared by the stages of `lisfm global_mapper` (issue 7): cameras,
+// The state shared by the stages of `lisfm global_mapper`: cameras,
 // images with their keypoints, rig frames, the view graph, LiDAR constraints
 // and tracks. Every stage is a free function that reads and updates one
 // MapperState (view_graph.h, rotation_averaging.h, translation_averaging.h,
@@ -28,9 +28,9 @@
 #include <unordered_map>
 #include <vector>
 
-#include "colmap_ext/camera_models.h"
-#include "colmap_ext/database.h"
-#include "colmap_ext/reconstruction.h"
+#include "colmap_ext/io/camera_models.h"
+#include "colmap_ext/io/database.h"
+#include "colmap_ext/io/reconstruction.h"
 #include "core/geometry.h"
 #include "core/types.h"
 

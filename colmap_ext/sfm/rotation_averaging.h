@@ -1,5 +1,4 @@
-// Stage 2 of `lisfm global_mapper` (issue 7): rotation averaging over rig
-// frames.
+// Stage 2 of `lisfm global_mapper`: rotation averaging over rig frames.
 //
 // Measurements (all relative rotations between two DIFFERENT frames a, b of
 // the given component):
@@ -51,7 +50,7 @@
 #include <string>
 #include <vector>
 
-#include "colmap_ext/mapper_state.h"
+#include "colmap_ext/sfm/mapper_state.h"
 
 namespace lisfm {
 namespace colmap {

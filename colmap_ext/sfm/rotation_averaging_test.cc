@@ -1,4 +1,4 @@
-#include "colmap_ext/rotation_averaging.h"
+#include "colmap_ext/sfm/rotation_averaging.h"
 
 #include <gtest/gtest.h>
 

@@ -1,4 +1,4 @@
-#include "colmap_ext/schur_bundle_adjuster.h"
+#include "colmap_ext/sfm/schur_bundle_adjuster.h"
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
@@ -13,7 +13,7 @@
 
 #include <Eigen/Cholesky>
 
-#include "colmap_ext/camera_model_functors.h"
+#include "colmap_ext/sfm/camera_model_functors.h"
 #include "core/errors.h"
 
 namespace lisfm {

@@ -1,4 +1,4 @@
-#include "colmap_ext/sfm_evaluation.h"
+#include "colmap_ext/sfm/sfm_evaluation.h"
 
 #include <algorithm>
 #include <cctype>
@@ -10,7 +10,7 @@
 #include <sstream>
 #include <unordered_map>
 
-#include "colmap_ext/model_io.h"
+#include "colmap_ext/io/model_io.h"
 #include "core/errors.h"
 #include "core/file_utils.h"
 #include "core/logging.h"

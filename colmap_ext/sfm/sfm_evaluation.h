@@ -1,5 +1,5 @@
-// Evaluation of SfM camera poses against reference cameras (issue 7,
-// `lisfm model_evaluator`, scripts/compare_colmap.sh).
+// Evaluation of SfM camera poses against reference cameras (`lisfm model_evaluator`,
+// scripts/compare_colmap.sh).
 //
 // References: a COLMAP model folder (model_io.h), the Strecha et al. 2008
 // `gt_dense_cameras/*.camera` folder, or a Bundler v0.3 `.out` file.
@@ -37,8 +37,8 @@
 #include <string>
 #include <vector>
 
-#include "colmap_ext/camera_models.h"
-#include "colmap_ext/reconstruction.h"
+#include "colmap_ext/io/camera_models.h"
+#include "colmap_ext/io/reconstruction.h"
 #include "core/evaluation.h"
 #include "core/geometry.h"
 

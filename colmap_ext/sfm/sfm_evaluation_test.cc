@@ -1,6 +1,6 @@
 // sfm_evaluation: synthetic models with exactly known errors, the Strecha,
 // Bundler and COLMAP reference readers on the real files, and bad input.
-#include "colmap_ext/sfm_evaluation.h"
+#include "colmap_ext/sfm/sfm_evaluation.h"
 
 #include <gtest/gtest.h>
 
@@ -12,7 +12,7 @@
 #include <string>
 #include <vector>
 
-#include "colmap_ext/model_io.h"
+#include "colmap_ext/io/model_io.h"
 #include "core/errors.h"
 #include "tests/common/test_utils.h"
 

@@ -1,4 +1,4 @@
-#include "colmap_ext/tracks.h"
+#include "colmap_ext/sfm/tracks.h"
 
 #include <algorithm>
 #include <chrono>

@@ -1,4 +1,4 @@
-// Track establishment for `lisfm global_mapper` (issue 7, stage 4a): joins the
+// Track establishment for `lisfm global_mapper` (stage 4a): joins the
 // inlier matches of the view graph into multi-view tracks (feature tracks,
 // one per hypothesised 3D point) by union-find over keypoints.
 //
@@ -32,7 +32,7 @@
 
 #include <cstddef>
 
-#include "colmap_ext/mapper_state.h"
+#include "colmap_ext/sfm/mapper_state.h"
 
 namespace lisfm {
 namespace colmap {

@@ -1,4 +1,4 @@
-#include "colmap_ext/translation_averaging.h"
+#include "colmap_ext/sfm/translation_averaging.h"
 
 #include <algorithm>
 #include <chrono>

@@ -1,4 +1,4 @@
-// Translation averaging of `lisfm global_mapper` (issue 7, stage 3): frame
+// Translation averaging of `lisfm global_mapper` (stage 3): frame
 // positions from the view graph's relative directions, with the frame
 // rotations held fixed (rotation_averaging.h ran before).
 //
@@ -105,7 +105,7 @@
 
 #include <ceres/ceres.h>
 
-#include "colmap_ext/mapper_state.h"
+#include "colmap_ext/sfm/mapper_state.h"
 
 namespace lisfm {
 namespace colmap {

@@ -1,4 +1,4 @@
-#include "colmap_ext/triangulation.h"
+#include "colmap_ext/sfm/triangulation.h"
 
 #include <algorithm>
 #include <chrono>
@@ -12,7 +12,7 @@
 #include <tbb/parallel_for.h>
 #include <tbb/task_arena.h>
 
-#include "colmap_ext/camera_model_functors.h"
+#include "colmap_ext/sfm/camera_model_functors.h"
 #include "core/errors.h"
 #include "core/logging.h"
 

@@ -1,5 +1,5 @@
 // Multi-view triangulation of tracks, and the filter / retriangulation steps
-// between bundle adjustments of `lisfm global_mapper` (issue 7, stage 4b).
+// between bundle adjustments of `lisfm global_mapper` (stage 4b).
 //
 // Geometry: poses from MapperState::CamFromWorld (cam_from_world =
 // cam_from_rig * rig_from_world), observations are the images' keypoints in
@@ -46,7 +46,7 @@
 
 #include <cstddef>
 
-#include "colmap_ext/mapper_state.h"
+#include "colmap_ext/sfm/mapper_state.h"
 
 namespace lisfm {
 namespace colmap {

@@ -1,4 +1,4 @@
-#include "colmap_ext/triangulation.h"
+#include "colmap_ext/sfm/triangulation.h"
 
 #include <cmath>
 #include <random>

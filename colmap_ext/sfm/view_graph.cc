@@ -1,4 +1,4 @@
-#include "colmap_ext/view_graph.h"
+#include "colmap_ext/sfm/view_graph.h"
 
 #include <oneapi/tbb/parallel_for.h>
 #include <oneapi/tbb/task_arena.h>

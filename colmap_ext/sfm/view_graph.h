@@ -1,4 +1,4 @@
-// Stage 1 of `lisfm global_mapper` (issue 7): the view graph.
+// Stage 1 of `lisfm global_mapper`: the view graph.
 //
 // BuildViewGraph reads the two_view_geometries of a COLMAP database and keeps
 // the image pairs that can carry a relative pose:
@@ -38,8 +38,8 @@
 #include <cstddef>
 #include <vector>
 
-#include "colmap_ext/database.h"
-#include "colmap_ext/mapper_state.h"
+#include "colmap_ext/io/database.h"
+#include "colmap_ext/sfm/mapper_state.h"
 
 namespace lisfm {
 namespace colmap {

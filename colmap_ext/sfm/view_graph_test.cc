@@ -1,4 +1,4 @@
-#include "colmap_ext/view_graph.h"
+#include "colmap_ext/sfm/view_graph.h"
 
 #include <gtest/gtest.h>
 

@@ -1,4 +1,4 @@
-#include "colmap_ext/sfm_synthetic.h"
+#include "colmap_ext/testing/sfm_synthetic.h"
 
 #include <unistd.h>
 

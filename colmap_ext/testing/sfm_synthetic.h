@@ -1,5 +1,5 @@
 // Synthetic SfM problems with exact ground truth, written into a COLMAP
-// database (issue 7): the input of the stage tests of `lisfm global_mapper`
+// database: the input of the stage tests of `lisfm global_mapper`
 // (view graph, averaging, tracks, triangulation, BA) and of its end-to-end
 // tests. In the spirit of COLMAP's scene/synthetic.h, plus rigs, pose priors
 // and LiDAR constraints.
@@ -51,8 +51,8 @@
 #include <string>
 #include <vector>
 
-#include "colmap_ext/database.h"
-#include "colmap_ext/lidar_constraints.h"
+#include "colmap_ext/io/database.h"
+#include "core/io/lidar_constraints_io.h"
 #include "core/geometry.h"
 #include "core/rig.h"
 

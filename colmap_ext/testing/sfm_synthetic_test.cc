@@ -1,4 +1,4 @@
-#include "colmap_ext/sfm_synthetic.h"
+#include "colmap_ext/testing/sfm_synthetic.h"
 
 #include <unistd.h>
 
@@ -8,8 +8,9 @@
 
 #include <gtest/gtest.h>
 
-#include "colmap_ext/database.h"
-#include "colmap_ext/mapper_state.h"
+#include "colmap_ext/io/database.h"
+#include "colmap_ext/sfm/lidar_constraints.h"
+#include "colmap_ext/sfm/mapper_state.h"
 #include "core/errors.h"
 #include "core/file_utils.h"
 #include "core/io/rig_io.h"

@@ -1,4 +1,4 @@
-#include "colmap_ext/synthetic.h"
+#include "colmap_ext/testing/synthetic.h"
 
 #include <algorithm>
 #include <cmath>

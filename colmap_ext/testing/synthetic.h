@@ -8,7 +8,7 @@
 
 #include <cstdint>
 
-#include "colmap_ext/reconstruction.h"
+#include "colmap_ext/io/reconstruction.h"
 
 namespace lisfm {
 namespace colmap {

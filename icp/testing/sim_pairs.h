@@ -1,5 +1,5 @@
 // Simulated LiDAR scan pairs with exactly known relative pose, for the covariance
-// calibration study (icp/bench/icp_covariance_bench.cc,
+// calibration study (bench/icp_covariance_bench.cc,
 // scripts/bench_icp_covariance.sh) and its unit test (header-only; tests and
 // benchmarks only, lisfm_icp does not depend on lisfm_sim).
 //
@@ -148,8 +148,8 @@ inline void AppendBoxTriangles(const Eigen::Vector3f& lo, const Eigen::Vector3f&
   }
 }
 
-// A stair tower (a tuning scene of the covariance calibration, session 7; NOT the
-// sim's held-out "staircase" generator): a 6 x 4.4 m shaft of three 3 m storeys
+// A stair tower (a tuning check of the covariance calibration; NOT the sim's
+// held-out "staircase" generator): a 6 x 4.4 m shaft of three 3 m storeys
 // with a switchback stair around an open 1.8 m well. Per storey, flight A (y in
 // [0, 1.3]) climbs +x over x in [1.6, 4.4] to a landing (x in [4.4, 6]) at +1.5 m,
 // flight B (y in [3.1, 4.4]) climbs -x to the next floor slab (x in [0, 1.6]);
@@ -222,8 +222,8 @@ inline std::unique_ptr<sim::Scene> StairTowerScene(uint32_t seed, sim::WalkingRo
   return sim::Scene::FromTriangles(std::move(tris));
 }
 
-// A service corridor (a tuning scene of the covariance calibration, session 8; NOT
-// the sim's held-out "staircase" generator): 14 m long (x in [0, 14]), 2.6 m wide,
+// A service corridor (a tuning check of the covariance calibration; NOT the sim's
+// held-out "staircase" generator): 14 m long (x in [0, 14]), 2.6 m wide,
 // 2.8 m high, closed at both ends; door recesses (1 m wide, 0.15 m deep) in both
 // walls, crates and cabinets along the walls, a cable tray and a pipe under the
 // ceiling, a fire-door frame halfway (placed from `seed`). Long, narrow and sparsely

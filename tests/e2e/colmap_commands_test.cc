@@ -2,9 +2,9 @@
 // database_info` like a user would, including bad input.
 #include <gtest/gtest.h>
 
-#include "colmap_ext/database.h"
-#include "colmap_ext/model_io.h"
-#include "colmap_ext/synthetic.h"
+#include "colmap_ext/io/database.h"
+#include "colmap_ext/io/model_io.h"
+#include "colmap_ext/testing/synthetic.h"
 #include "core/file_utils.h"
 #include "tests/common/test_utils.h"
 

@@ -7,10 +7,10 @@
 
 #include <gtest/gtest.h>
 
-#include "colmap_ext/model_io.h"
-#include "colmap_ext/sfm_evaluation.h"
-#include "colmap_ext/sfm_synthetic.h"
-#include "colmap_ext/stock_colmap_test_utils.h"
+#include "colmap_ext/io/model_io.h"
+#include "colmap_ext/sfm/sfm_evaluation.h"
+#include "colmap_ext/testing/sfm_synthetic.h"
+#include "colmap_ext/testing/stock_colmap.h"
 #include "core/file_utils.h"
 #include "tests/common/test_utils.h"
 

@@ -1,4 +1,4 @@
-// `lisfm global_mapper` on a simulated HILTI-style rig recording (issue 7):
+// `lisfm global_mapper` on a simulated HILTI-style rig recording:
 // images rendered by the simulator for three of the five real HILTI 2022
 // cameras, stock COLMAP SIFT extraction and exhaustive matching, pose priors
 // perturbed by 2 cm / 0.5 deg (what a LiDAR stage gives) and LiDAR relative
@@ -14,9 +14,9 @@
 #include <gtest/gtest.h>
 #include <opencv2/imgcodecs.hpp>
 
-#include "colmap_ext/database.h"
-#include "colmap_ext/lidar_constraints.h"
-#include "colmap_ext/model_io.h"
+#include "colmap_ext/io/database.h"
+#include "core/io/lidar_constraints_io.h"
+#include "colmap_ext/io/model_io.h"
 #include "core/file_utils.h"
 #include "core/io/rig_io.h"
 #include "sim/camera_simulator.h"
@@ -123,10 +123,10 @@ TEST(GlobalMapperSim, RigWithPriorsAndConstraintsOnRenderedImages) {
       database.UpdateImage(image);
     }
   }
-  std::vector<colmap::LidarConstraintRecord> constraints;
+  std::vector<LidarConstraintRecord> constraints;
   const double sr = 0.1 * kDegToRad, st = 0.005;
   for (int f = 0; f + 1 < frames; ++f) {
-    colmap::LidarConstraintRecord r;
+    LidarConstraintRecord r;
     r.t_i_ns = stamps[f];
     r.t_j_ns = stamps[f + 1];
     r.i_from_j = walk.Pose(stamps[f]).Inverse() * walk.Pose(stamps[f + 1]) * noise(sr, st);
@@ -134,7 +134,7 @@ TEST(GlobalMapperSim, RigWithPriorsAndConstraintsOnRenderedImages) {
     r.covariance.diagonal() << sr * sr, sr * sr, sr * sr, st * st, st * st, st * st;
     constraints.push_back(r);
   }
-  colmap::WriteLidarConstraints(constraints, dir.File("constraints.txt"));
+  WriteLidarConstraints(constraints, dir.File("constraints.txt"));
 
   ASSERT_EQ(test::RunCommand(test::LisfmBinary() + " global_mapper --database_path " + db +
                                  " --image_path " + dir.File("images") + " --output_path " +

@@ -10,7 +10,7 @@
 #include <nlohmann/json.hpp>
 #include <string>
 
-#include "colmap_ext/model_io.h"
+#include "colmap_ext/io/model_io.h"
 #include "core/geometry.h"
 #include "tests/common/test_utils.h"
 

@@ -14,6 +14,7 @@
 #include "core/io/trajectory_io.h"
 #include "importers/lidar_frames.h"
 #include "importers/sequence.h"
+#include "lio/imu_feeder.h"
 #include "sim/simulator.h"
 #include "tests/common/test_utils.h"
 
@@ -55,9 +56,10 @@ LioRun RunLio(const Sequence& seq, const LioOptions& options, const std::vector<
   LioOdometry odom(options, seq.rig.imu, extrinsics, offsets);
   LioRun run;
   LidarFrameReader reader(seq, lidars);
+  ImuFeeder imu_feeder(seq.imu);
   LidarFrame frame;
   while (reader.Next(&frame)) {
-    reader.FeedImuUntil(frame.end_ns, &odom);
+    imu_feeder.FeedUntil(frame.end_ns, &odom);
     const LioFrameResult r = odom.ProcessFrame(frame.Inputs());
     run.results.push_back(r);
     if (r.processed) {
@@ -179,8 +181,8 @@ TEST(LioOdometry, ShortSequenceOneLidarMeetsAteBound) {
   const LioRun run = RunLio(seq, LioOptions(), {0});
   ASSERT_GT(run.trajectory.size(), 130u);
   const double ate = AteRmse(seq, run.trajectory);
-  // The office target is 2 cm; with sensor noise on we measure ~2 mm,
-  // so 1 cm keeps a margin and still fails on any real regression.
+  // The office target is 2 cm; with sensor noise on we measure ~2 mm, so 1 cm keeps a
+  // margin and still fails on any real regression.
   std::printf("one LiDAR: ATE %.4f m over %zu poses, weak-direction scans %.2f\n", ate,
               run.trajectory.size(), WeakFraction(run));
   EXPECT_LT(ate, 0.01) << "ATE " << ate;
@@ -222,7 +224,7 @@ TEST(LioOdometry, StaircaseIsFlaggedDegenerateAndDoesNotDiverge) {
   ASSERT_GT(run.trajectory.size(), 130u);
   const double ate = AteRmse(seq, run.trajectory);
   std::printf("staircase: ATE %.4f m, weak-direction scans %.2f\n", ate, WeakFraction(run));
-  // The staircase bound is 10 cm; we measure < 1 cm.
+  // The staircase bound is 10 cm; we measure < 1 cm.
   EXPECT_LT(ate, 0.05);
   // The narrow stair shaft constrains some direction weakly in most scans.
   EXPECT_GT(WeakFraction(run), 0.3);
@@ -232,7 +234,8 @@ TEST(LioOdometry, StaircaseIsFlaggedDegenerateAndDoesNotDiverge) {
 // where the horizontal LiDAR (±16°) sees almost no floor or ceiling, so the
 // height rests on step edges and the IMU. Matches across a riser (a point on
 // a tread not yet in the map against the tread below) and planes fitted across
-// a step edge used to pull the pose 8-14 cm down here; the error is measured
+// a step edge pull the pose 8-14 cm down here unless the residual gates reject
+// them (LioOptions::max_point_residual, max_plane_residual); the error is measured
 // without alignment (world = the first pose, DESIGN.md), where such an offset
 // cannot be absorbed.
 TEST(LioOdometry, StaircaseClimbKeepsItsHeight) {
