@@ -1,4 +1,5 @@
-// Range checks of options structs, in the style of COLMAP's CHECK_OPTION_* macros:
+// Range checks of options structs, in the style of COLMAP's CHECK_OPTION_*
+// macros:
 //
 //   bool IcpOptions::Check() const {
 //     CHECK_OPTION_GE(max_iterations, 1);
@@ -7,13 +8,14 @@
 //     return true;
 //   }
 //
-// Contract: a failed check makes the enclosing function return false and records
-// the failure (field address, field name, value, requirement) for the calling
-// thread; LastOptionCheckFailure() returns it until the next failure. Nothing is
-// printed (one debug log line): the caller that knows the user's context turns the
-// record into one error line (OptionManager::ThrowUnlessValid names the CLI option
-// bound to the field; THROW_CHECK_OPTIONS throws an InternalError naming the field).
-// Floating-point values must also be finite: NaN and +-inf fail every comparison.
+// Contract: a failed check makes the enclosing function return false and
+// records the failure (field address, field name, value, requirement) for the
+// calling thread; LastOptionCheckFailure() returns it until the next failure.
+// Nothing is printed (one debug log line): the caller that knows the user's
+// context turns the record into one error line (OptionManager::ThrowUnlessValid
+// names the CLI option bound to the field; THROW_CHECK_OPTIONS throws an
+// InternalError naming the field). Floating-point values must also be finite:
+// NaN and +-inf fail every comparison.
 #pragma once
 
 #include <cmath>
@@ -27,15 +29,18 @@
 namespace lisfm {
 
 struct OptionCheckFailure {
-  const void* field = nullptr;  // address of the failing field (or of the struct's member)
-  std::string name;             // field name; nested fields as "map.voxel_size"
-  std::string value;            // the value, formatted ("0", "-0.5", "[1, 5]")
-  std::string requirement;      // what it must be (">= 1", "in (0, 2)", "< num_iterations (100)")
+  const void* field =
+      nullptr;       // address of the failing field (or of the struct's member)
+  std::string name;  // field name; nested fields as "map.voxel_size"
+  std::string value;        // the value, formatted ("0", "-0.5", "[1, 5]")
+  std::string requirement;  // what it must be (">= 1", "in (0, 2)", "<
+                            // num_iterations (100)")
   // "name = value (must be requirement)".
   std::string ToString() const;
 };
 
-// The failure recorded by the last failed check on this thread (empty before any).
+// The failure recorded by the last failed check on this thread (empty before
+// any).
 const OptionCheckFailure& LastOptionCheckFailure();
 
 namespace internal {
@@ -69,7 +74,8 @@ std::string FormatOptionValue(const T& value) {
 template <typename T>
 std::string FormatOptionValue(const std::vector<T>& values) {
   std::string s = "[";
-  for (size_t i = 0; i < values.size(); ++i) s += (i ? ", " : "") + FormatOptionValue(values[i]);
+  for (size_t i = 0; i < values.size(); ++i)
+    s += (i ? ", " : "") + FormatOptionValue(values[i]);
   return s + "]";
 }
 
@@ -87,7 +93,8 @@ template <typename T>
 std::string FormatOptionBound(const T& bound, const char* text) {
   const std::string value = FormatOptionValue(bound);
   const char c = text[0];
-  const bool literal = (c >= '0' && c <= '9') || c == '-' || c == '+' || c == '.';
+  const bool literal =
+      (c >= '0' && c <= '9') || c == '-' || c == '+' || c == '.';
   return literal ? value : std::string(text) + " (" + value + ")";
 }
 
@@ -100,8 +107,11 @@ bool CheckOptionOp(bool ok,
                    const B& bound,
                    const char* bound_text) {
   if (ok && IsFiniteOptionValue(value)) return true;
-  RecordOptionCheckFailure(field, name, FormatOptionValue(value),
-                           std::string(op) + " " + FormatOptionBound(bound, bound_text));
+  RecordOptionCheckFailure(
+      field,
+      name,
+      FormatOptionValue(value),
+      std::string(op) + " " + FormatOptionBound(bound, bound_text));
   return false;
 }
 
@@ -120,12 +130,17 @@ bool CheckOption(bool ok,
 }  // namespace lisfm
 
 // `field op bound` must hold (and a floating-point field must be finite).
-#define CHECK_OPTION_OP(field, op, bound)                                            \
-  do {                                                                               \
-    if (!::lisfm::internal::CheckOptionOp(((field)op(bound)), (field), &(field), #field, \
-                                          #op, (bound), #bound)) {                   \
-      return false;                                                                  \
-    }                                                                                \
+#define CHECK_OPTION_OP(field, op, bound)                     \
+  do {                                                        \
+    if (!::lisfm::internal::CheckOptionOp(((field)op(bound)), \
+                                          (field),            \
+                                          &(field),           \
+                                          #field,             \
+                                          #op,                \
+                                          (bound),            \
+                                          #bound)) {          \
+      return false;                                           \
+    }                                                         \
   } while (0)
 #define CHECK_OPTION_EQ(field, bound) CHECK_OPTION_OP(field, ==, bound)
 #define CHECK_OPTION_NE(field, bound) CHECK_OPTION_OP(field, !=, bound)
@@ -136,26 +151,30 @@ bool CheckOption(bool ok,
 
 // `cond` must hold for `field`; `requirement` says what the field must be
 // ("in (0, 2)", "-1 or >= 1", "one of huber, cauchy").
-#define CHECK_OPTION_MSG(field, cond, requirement)                                         \
-  do {                                                                                     \
-    if (!::lisfm::internal::CheckOption(static_cast<bool>(cond), (field), &(field), #field, \
-                                        (requirement))) {                                  \
-      return false;                                                                        \
-    }                                                                                      \
-  } while (0)
-
-// A nested options struct must pass its own Check(); its failure is reported
-// as "<nested>.<field>".
-#define CHECK_OPTION_NESTED(nested)                              \
+#define CHECK_OPTION_MSG(field, cond, requirement)               \
   do {                                                           \
-    if (!(nested).Check()) {                                     \
-      ::lisfm::internal::PrefixOptionCheckFailure(#nested);      \
+    if (!::lisfm::internal::CheckOption(static_cast<bool>(cond), \
+                                        (field),                 \
+                                        &(field),                \
+                                        #field,                  \
+                                        (requirement))) {        \
       return false;                                              \
     }                                                            \
   } while (0)
 
+// A nested options struct must pass its own Check(); its failure is reported
+// as "<nested>.<field>".
+#define CHECK_OPTION_NESTED(nested)                         \
+  do {                                                      \
+    if (!(nested).Check()) {                                \
+      ::lisfm::internal::PrefixOptionCheckFailure(#nested); \
+      return false;                                         \
+    }                                                       \
+  } while (0)
+
 // Library entry points: invalid options are a caller bug (InternalError naming
 // the failing field, its value and the requirement).
-#define THROW_CHECK_OPTIONS(options)                                                      \
-  THROW_CHECK_MSG((options).Check(),                                                      \
-                  ": invalid " #options ": " << ::lisfm::LastOptionCheckFailure().ToString())
+#define THROW_CHECK_OPTIONS(options)         \
+  THROW_CHECK_MSG((options).Check(),         \
+                  ": invalid " #options ": " \
+                      << ::lisfm::LastOptionCheckFailure().ToString())
