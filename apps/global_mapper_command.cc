@@ -5,6 +5,7 @@
 #include <string>
 
 #include "apps/commands.h"
+#include "apps/summary_json.h"
 #include "colmap_ext/io/database.h"
 #include "colmap_ext/sfm/global_mapper.h"
 #include "colmap_ext/sfm/lidar_constraints.h"
@@ -181,9 +182,10 @@ int RunGlobalMapper(int argc, char** argv) {
     std::filesystem::remove_all(stale, ec);
     LogWarning("global_mapper: removed the stale model {} of an earlier run", stale);
   }
-  result.summary["mapping_seconds_including_io"] = mapping_s;
+  nlohmann::json summary = GlobalMapperSummaryToJson(result.summary);
+  summary["mapping_seconds_including_io"] = mapping_s;
   WriteFileAtomically(JoinPaths(output_path, "global_mapper_summary.json"),
-                      result.summary.dump(2) + "\n");
+                      summary.dump(2) + "\n");
   options.WriteConfig(JoinPaths(output_path, "global_mapper_config.yaml"));
 
   size_t images = 0, points = 0, observations = 0;

@@ -18,6 +18,7 @@
 #include <vector>
 
 #include "apps/commands.h"
+#include "apps/summary_json.h"
 #include "colmap_ext/io/model_io.h"
 #include "colmap_ext/sfm/sfm_evaluation.h"
 #include "core/errors.h"
@@ -142,7 +143,7 @@ int RunModelEvaluator(int argc, char** argv) {
     const std::string parent = std::filesystem::path(output_path).parent_path().string();
     if (!parent.empty()) CreateDirs(parent);
     WriteFileAtomically(output_path,
-                        colmap::SfmEvaluationToJson(
+                        SfmEvaluationToJson(
                             ev, {{"model_path", model_folder},
                                  {"reference_path", reference_path},
                                  {"reference_format", colmap::ReferenceFormatName(reference_format)}}));
