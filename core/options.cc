@@ -311,6 +311,10 @@ void OptionManager::RequireLess(const std::string& smaller, const std::string& l
   relations_.push_back({a->name, b->name});
 }
 
+void OptionManager::AddStructCheck(std::function<bool()> check) {
+  struct_checks_.push_back(std::move(check));
+}
+
 OptionManager::Entry* OptionManager::Find(const std::string& name_or_alias) const {
   for (const auto& e : entries_) {
     if (e->name == name_or_alias) return e.get();
@@ -507,6 +511,7 @@ void OptionManager::ValidateValues() const {
     }
     ThrowOutOfRange(a, "< --" + b.name + " (" + b.to_string() + ")");
   }
+  for (const auto& check : struct_checks_) ThrowUnlessValid(check());
 }
 
 void OptionManager::ThrowUnlessValid(bool check_passed) const {

@@ -122,6 +122,12 @@ class OptionManager {
   // Numeric options: value(smaller) < value(larger). A violation names the
   // option the user gave (`larger` when only it was given, else `smaller`).
   void RequireLess(const std::string& smaller, const std::string& larger);
+  // `check` is an options struct's Check() (core/option_check.h). Parse calls
+  // it after the value checks above; a failure is reported like a range
+  // violation of the registered option bound to the failing field (the
+  // requirement text of its CHECK_OPTION_*), so constraints between fields
+  // need no second statement here.
+  void AddStructCheck(std::function<bool()> check);
 
   // Adds --verbose (log level debug) and --quiet (warnings only). Called by the
   // constructor; the values are applied to the logging facade by Parse().
@@ -182,6 +188,7 @@ class OptionManager {
   std::unique_ptr<CLI::App> app_;
   std::vector<std::unique_ptr<Entry>> entries_;
   std::vector<Relation> relations_;
+  std::vector<std::function<bool()>> struct_checks_;
   std::string config_path_;
   bool verbose_ = false;
   bool quiet_ = false;

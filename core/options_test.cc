@@ -393,6 +393,27 @@ TEST(OptionCheck, ThrowCheckOptionsNamesTheField) {
   }
 }
 
+TEST(Options, StructCheckNamesTheOptionOfTheFailingField) {
+  CheckedOptions o;
+  OptionManager options("lisfm test", "struct check");
+  options.AddInt("Test.count", &o.count, "count");
+  options.AddDouble("Test.scale", &o.scale, "scale");
+  options.AddStructCheck([&o] { return o.Check(); });
+  Args good({"lisfm test", "--Test.scale", "2"});
+  EXPECT_TRUE(options.Parse(good.argc(), good.argv()));
+  OptionManager bad_options("lisfm test", "struct check");
+  bad_options.AddInt("Test.count", &o.count, "count");
+  bad_options.AddDouble("Test.scale", &o.scale, "scale");
+  bad_options.AddStructCheck([&o] { return o.Check(); });
+  Args bad({"lisfm test", "--Test.scale", "4"});
+  try {
+    bad_options.Parse(bad.argc(), bad.argv());
+    FAIL() << "expected a UsageError";
+  } catch (const UsageError& e) {
+    EXPECT_EQ(std::string(e.what()), "--Test.scale 4 is out of range: must be < count (3)");
+  }
+}
+
 TEST(Options, NearestName) {
   EXPECT_EQ(NearestName("evalute", {"evaluate", "simulate", "icp"}), "evaluate");
   EXPECT_EQ(NearestName("zzzzzzzz", {"evaluate", "icp"}), "");
