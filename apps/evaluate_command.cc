@@ -1,8 +1,11 @@
 // `lisfm evaluate`: scores an estimated trajectory against ground truth.
 //
-//   lisfm evaluate --reference REF --estimate EST [--align se3|sim3|none]
-//                  [--max_dt s] [--reference_type trajectory|control_points]
+//   lisfm evaluate --reference_path REF --estimate_path EST
+//                  [--alignment se3|sim3|none] [--max_dt s]
+//                  [--reference_type trajectory|control_points]
 //                  [--output_path DIR]
+//
+// (--reference, --estimate and --align are accepted as aliases.)
 //
 // Reference type `trajectory`: nearest-time association within max_dt (default
 // 0.01 s), alignment (default se3), ATE, RPE per frame and over 1/5/10 m; with
@@ -20,6 +23,7 @@
 #include <vector>
 
 #include "apps/commands.h"
+#include "apps/option_sections.h"
 #include "core/errors.h"
 #include "core/evaluation.h"
 #include "core/file_utils.h"
@@ -328,31 +332,32 @@ int RunEvaluate(int argc, char** argv) {
       "score a trajectory against ground truth (ATE, RPE, HILTI 2022 score)");
   std::string reference_path;
   std::string estimate_path;
-  std::string align = "se3";
   double max_dt_s = kDefaultTrajectoryMaxDtS;
   std::string reference_type = "trajectory";
   std::string output_path;
+  TrajectoryEvaluationOptions eval;
+  HiltiScoreOptions hilti;
   options.AddRequiredString(
-      "reference",
+      "reference_path",
       &reference_path,
       "reference: TUM .txt / EuRoC .csv trajectory or HILTI control points");
+  options.AddAlias("reference", "reference_path");
   options.AddRequiredString(
-      "estimate",
+      "estimate_path",
       &estimate_path,
       "estimated trajectory (TUM .txt or EuRoC .csv, IMU frame)");
-  options.AddChoice("align",
-                    &align,
-                    {"se3", "sim3", "none"},
-                    "alignment of the estimate to the reference");
+  options.AddAlias("estimate", "estimate_path");
+  AddTrajectoryEvaluationOptions(&options, &eval);
   options.AddDouble(
       "max_dt",
       &max_dt_s,
       "association tolerance in s (default 0.01 for trajectories, 2 for "
-      "control points)");
+      "control points)",
+      OptionRange::AtLeast(0));
   options.AddChoice("reference_type",
                     &reference_type,
                     {"trajectory", "control_points"},
-                    "what --reference holds");
+                    "what --reference_path holds");
   options.AddString(
       "output_path",
       &output_path,
@@ -362,21 +367,11 @@ int RunEvaluate(int argc, char** argv) {
   const bool control_points = reference_type == "control_points";
   if (control_points && !options.IsSet("max_dt"))
     max_dt_s = kDefaultControlPointMaxDtS;
-  if (!(max_dt_s >= 0) || !std::isfinite(max_dt_s)) {
-    throw UsageError(fmt::format(
-        "lisfm evaluate: --max_dt must be >= 0 s, found {}", max_dt_s));
-  }
-  AlignmentType alignment = AlignmentType::kSE3;
-  if (!ParseAlignmentType(align, &alignment)) {
-    throw UsageError(
-        "lisfm evaluate: --align must be se3, sim3 or none, found '" + align +
-        "'");
-  }
-  if (control_points && alignment != AlignmentType::kSE3) {
+  if (control_points && eval.alignment != AlignmentType::kSE3) {
     LogWarning(
         "the HILTI 2022 score always uses SE(3) alignment without scale; "
-        "--align {} ignored",
-        align);
+        "--alignment {} ignored",
+        AlignmentTypeName(eval.alignment));
   }
 
   LogStage("evaluate");
@@ -387,14 +382,13 @@ int RunEvaluate(int argc, char** argv) {
 
   Outputs out;
   if (control_points) {
-    HiltiScoreOptions hilti;
     hilti.max_dt_ns = max_dt_ns;
+    options.ThrowUnlessValid(hilti.Check());
     out = EvaluateAgainstControlPoints(
         reference_path, estimate_path, estimate, hilti);
   } else {
-    TrajectoryEvaluationOptions eval;
-    eval.alignment = alignment;
     eval.max_dt_ns = max_dt_ns;
+    options.ThrowUnlessValid(eval.Check());
     out = EvaluateAgainstTrajectory(
         reference_path, estimate_path, estimate, eval);
   }

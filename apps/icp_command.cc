@@ -13,6 +13,7 @@
 #include <tbb/parallel_invoke.h>
 
 #include "apps/commands.h"
+#include "apps/option_sections.h"
 #include "core/errors.h"
 #include "core/file_utils.h"
 #include "core/io/cloud_io.h"
@@ -79,7 +80,6 @@ int RunIcp(int argc, char** argv) {
   NormalOptions normal_options;
   IcpOptions icp;
   BayesianIcpOptions bayes;  // its association (kernel, normals) defaults differ: see below
-  int seed = 1;
   options.AddRequiredString("source_path", &source_path, "source cloud (.pcd/.ply)");
   options.AddRequiredString("target_path", &target_path, "target cloud (.pcd/.ply)");
   options.AddString("init_path", &init_path,
@@ -87,72 +87,14 @@ int RunIcp(int argc, char** argv) {
   options.AddChoice("method", &method, {"point_to_plane", "bayesian"}, "registration method");
   options.AddString("output_path", &output_path,
                     "folder for T_target_source.txt, covariance.txt, result.yaml and config.yaml (optional)");
-  options.AddDouble("Icp.source_voxel_size", &source_voxel_m, "source voxel downsampling (m, 0 = off)");
-  options.AddDouble("Icp.target_voxel_size", &target_voxel_m, "target voxel downsampling (m, 0 = off)");
-  options.AddInt("Icp.normal_neighbors", &normal_options.num_neighbors, "k of the PCA normals");
-  options.AddDouble("Icp.normal_radius", &normal_options.max_radius_m, "max neighbour distance for normals (m)");
-  options.AddInt("Icp.max_iterations", &icp.max_iterations,
-                 "associations (nearest-neighbour passes), each followed by Gauss-Newton solves");
-  options.AddInt("Icp.max_inner_iterations", &icp.max_inner_iterations,
-                 "extra Gauss-Newton solves on the same matches per association (0 = none)");
-  options.AddDouble("Icp.max_correspondence_distance", &icp.max_correspondence_distance_m,
-                    "reject matches farther than this (m)");
-  options.AddDouble("Icp.min_planarity", &icp.min_planarity, "ignore target points with lower planarity");
-  options.AddChoice("Icp.kernel", &icp.kernel, {"none", "huber", "cauchy", "geman_mcclure"},
-                    "robust kernel");
-  options.AddDouble("Icp.kernel_scale", &icp.kernel_scale_m, "robust kernel scale (m)");
-  options.AddDouble("Icp.convergence_rotation", &icp.convergence_rotation_rad, "step threshold (rad)");
-  options.AddDouble("Icp.convergence_translation", &icp.convergence_translation_m, "step threshold (m)");
-  options.AddDouble("Icp.degeneracy_threshold", &icp.degeneracy_threshold,
-                    "min/max eigenvalue ratio of the scaled Hessian");
-  options.AddBool("Icp.field_of_view_gate", &icp.field_of_view_gate,
-                  "no match for source points outside the target scan's elevation band or range "
-                  "(target in its sensor frame, spin axis z)");
-  options.AddDouble("Icp.visibility_gate", &icp.visibility_gate_m,
-                    "no match for source points hidden more than this (m, + 2 % of the range) behind "
-                    "the target scan's surface seen from its sensor (0 = off)");
-  options.AddChoice("Bayesian.kernel", &bayes.icp.kernel, {"none", "huber", "cauchy", "geman_mcclure"},
-                    "robust kernel of --method bayesian (replaces Icp.kernel; calibrated with cauchy)");
-  options.AddDouble("Bayesian.kernel_scale", &bayes.icp.kernel_scale_m,
-                    "robust kernel scale of --method bayesian (m; replaces Icp.kernel_scale)");
-  options.AddInt("Bayesian.normal_neighbors", &bayes.normal_neighbors,
-                 "k of the target normals of --method bayesian (replaces Icp.normal_neighbors)");
-  options.AddDouble("Bayesian.min_planarity", &bayes.icp.min_planarity,
-                    "ignore target points with lower planarity in --method bayesian (replaces "
-                    "Icp.min_planarity; calibrated with 0.1)");
-  options.AddBool("Bayesian.field_of_view_gate", &bayes.icp.field_of_view_gate,
-                  "Icp.field_of_view_gate of --method bayesian (replaces it; calibrated with 1; "
-                  "set 0 for clouds not in their sensor frame)");
-  options.AddDouble("Bayesian.visibility_gate", &bayes.icp.visibility_gate_m,
-                    "Icp.visibility_gate of --method bayesian (m; replaces it; calibrated with 0.1; "
-                    "set 0 for clouds not in their sensor frame)");
-  options.AddInt("Bayesian.iterations", &bayes.sgld.num_iterations, "SGLD iterations");
-  options.AddInt("Bayesian.burn_in", &bayes.sgld.burn_in, "SGLD burn-in iterations");
-  options.AddInt("Bayesian.thinning", &bayes.sgld.thinning, "keep every k-th sample");
-  options.AddInt("Bayesian.batch_size", &bayes.sgld.batch_size, "correspondences per mini-batch");
-  options.AddDouble("Bayesian.step_size", &bayes.sgld.step_size, "SGLD step in the preconditioned metric (0, 2)");
-  options.AddDouble("Bayesian.noise_sigma", &bayes.noise_sigma_m, "likelihood sigma (m), 0 = from ICP residuals");
-  options.AddInt("Bayesian.seed", &seed, "random seed of the chain");
-  options.AddInt("Bayesian.num_correlation_cells", &bayes.num_correlation_cells,
-                 "spatial cells of the per-pair (cluster sandwich) noise estimate");
-  options.AddDouble("Bayesian.leverage_power", &bayes.jackknife_leverage_power,
-                    "leverage adjustment of the cluster sandwich: 0 = CR1, 1 = CR3 jackknife (calibrated)");
-  options.AddDouble("Bayesian.refine_max_correspondence_distance",
-                    &bayes.refine_max_correspondence_distance_m,
-                    "after the ICP, refine it and associate the posterior within this distance (m; "
-                    "0 = Icp.max_correspondence_distance)");
-  options.AddDouble("Bayesian.noise_sigma_scale", &bayes.noise_sigma_scale,
-                    "multiplies the per-pair likelihood sigma (fitted on simulated office-type pairs)");
-  options.AddBool("Bayesian.plane_fit_variance", &bayes.plane_fit_variance,
-                  "per-correspondence variance from the target plane fit (normal uncertainty x offset)");
-  options.AddBool("Bayesian.block_tempering", &bayes.block_tempering,
-                  "rescale the rotation / translation blocks of the posterior to the cluster jackknife");
-  options.AddDouble("Bayesian.prior_sigma_rotation", &bayes.prior_sigma_rotation_rad,
-                    "Gaussian prior on the pose around --init_path, rotation sigma (rad; 0 = flat)");
-  options.AddDouble("Bayesian.prior_sigma_translation", &bayes.prior_sigma_translation_m,
-                    "Gaussian prior on the pose around --init_path, translation sigma (m; 0 = flat)");
+  options.AddDouble("Icp.source_voxel_size", &source_voxel_m,
+                    "source voxel downsampling (m, 0 = off)", OptionRange::AtLeast(0));
+  options.AddDouble("Icp.target_voxel_size", &target_voxel_m,
+                    "target voxel downsampling (m, 0 = off)", OptionRange::AtLeast(0));
+  AddNormalOptions(&options, &normal_options);
+  AddIcpOptions(&options, &icp);
+  AddBayesianIcpOptions(&options, &bayes);
   if (!options.Parse(argc, argv)) return 0;
-  bayes.sgld.seed = static_cast<uint64_t>(seed);
   NormalOptions target_normals = normal_options;
   if (method == "bayesian") {
     // The calibrated association of Bayesian ICP (BayesianIcpOptions): the Icp.*
@@ -167,14 +109,9 @@ int RunIcp(int argc, char** argv) {
     bayes.icp.visibility_gate_m = calibrated.visibility_gate_m;
     target_normals.num_neighbors = bayes.normal_neighbors;
   }
-  if (!icp.Check()) throw UsageError("invalid Icp.* options (see lisfm icp -h for ranges)");
-  if (!target_normals.Check()) {
-    throw UsageError("Icp.normal_neighbors (Bayesian.normal_neighbors with --method bayesian) must be "
-                     ">= 3 and Icp.normal_radius > 0");
-  }
-  if (method == "bayesian" && (!bayes.sgld.Check() || !bayes.Check())) {
-    throw UsageError("invalid Bayesian.* options (burn_in < iterations, 0 < step_size < 2, ...)");
-  }
+  // Parse validated each struct as registered; these hold after the merge too.
+  options.ThrowUnlessValid(target_normals.Check());
+  if (method == "bayesian") options.ThrowUnlessValid(bayes.Check());
 
   const SE3 initial = init_path.empty() ? SE3() : ReadTransform(init_path);
   // The source chain (load, voxel grid) and the target chain (load, voxel

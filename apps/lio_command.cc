@@ -11,6 +11,7 @@
 #include <fmt/format.h>
 
 #include "apps/commands.h"
+#include "apps/option_sections.h"
 #include "core/errors.h"
 #include "core/file_utils.h"
 #include "core/io/cloud_io.h"
@@ -72,42 +73,14 @@ int RunLio(int argc, char** argv) {
   options.AddChoice("method", &method, {"iekf", "lidar_only"},
                     "iekf: LiDAR-inertial filter; lidar_only: frame-to-map ICP baseline without "
                     "the IMU (first LiDAR only)");
-  options.AddInt("max_scans", &max_scans, "stop after this many frames (0 = all)");
+  options.AddInt("max_scans", &max_scans, "stop after this many frames (0 = all)",
+                 OptionRange::AtLeast(0));
   options.AddBool("write_keyframes", &write_keyframes, "write keyframe clouds (PCD)");
-  options.AddDouble("map_voxel_size", &map_voxel, "m, voxel size of the written map.pcd");
-  options.AddDouble("Lio.imu_noise_inflation", &lio.imu_noise_inflation,
-                    "factor on the rig's IMU noise densities");
-  options.AddInt("Lio.point_stride", &lio.point_stride,
-                 "keep every n-th raw point before down-sampling (1 = all)");
-  options.AddDouble("Lio.scan_voxel_size", &lio.scan_voxel_size, "m, scan down-sampling voxel");
-  options.AddDouble("Lio.min_range", &lio.min_range, "m, closer points are dropped (blind zone)");
-  options.AddDouble("Lio.max_range", &lio.max_range, "m, farther points are dropped");
-  options.AddInt("Lio.num_neighbours", &lio.num_neighbours, "k of the plane fit");
-  options.AddDouble("Lio.max_neighbour_distance", &lio.max_neighbour_distance,
-                    "m, farthest allowed plane neighbour");
-  options.AddDouble("Lio.max_plane_residual", &lio.max_plane_residual,
-                    "m, max distance of a neighbour to its plane");
-  options.AddDouble("Lio.max_point_residual", &lio.max_point_residual,
-                    "m, points farther from their plane are not used");
-  options.AddDouble("Lio.point_noise_std", &lio.point_noise_std, "m, point-to-plane noise std");
-  options.AddInt("Lio.max_iterations", &lio.max_iterations, "IEKF iterations per scan");
-  options.AddDouble("Lio.convergence_rotation", &lio.convergence_rotation, "rad");
-  options.AddDouble("Lio.convergence_translation", &lio.convergence_translation, "m");
-  options.AddDouble("Lio.reassociate_translation", &lio.reassociate_translation,
-                    "m: after convergence, search neighbours again only if the pose moved more");
-  options.AddDouble("Lio.reassociate_rotation", &lio.reassociate_rotation,
-                    "rad: ... or rotated more than this since the last search");
-  options.AddDouble("Lio.degeneracy_threshold", &lio.degeneracy_threshold,
-                    "eigenvalue of the per-point information HᵀH/N below which a direction is weak");
-  options.AddDouble("Lio.keyframe_distance", &lio.keyframe_distance, "m between keyframes");
-  options.AddDouble("Lio.keyframe_angle_deg", &lio.keyframe_angle_deg, "deg between keyframes");
-  options.AddDouble("Map.voxel_size", &lio.map.voxel_size, "m, iVox hash voxel edge");
-  options.AddDouble("Map.resolution", &lio.map.resolution, "m, min spacing of map points");
-  options.AddInt("Map.max_points_per_voxel", &lio.map.max_points_per_voxel, "points per voxel");
-  options.AddDouble("Init.min_duration_s", &lio.init.min_duration_s,
-                    "s of stationary IMU data for the initialisation");
+  options.AddDouble("map_voxel_size", &map_voxel,
+                    "m, voxel size of the written map.pcd (0 = no downsampling)",
+                    OptionRange::AtLeast(0));
+  AddLioOptions(&options, &lio);
   if (!options.Parse(argc, argv)) return 0;
-  if (!lio.Check()) throw UsageError("lisfm lio: invalid Lio/Map/Init option values");
 
   const auto t0 = std::chrono::steady_clock::now();
   LogStage("lio: reading " + input_path);

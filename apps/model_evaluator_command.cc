@@ -18,6 +18,8 @@
 #include <vector>
 
 #include "apps/commands.h"
+#include "apps/option_sections.h"
+#include "apps/summary_json.h"
 #include "colmap_ext/io/model_io.h"
 #include "colmap_ext/sfm/sfm_evaluation.h"
 #include "core/errors.h"
@@ -72,7 +74,8 @@ std::string ResolveModelFolder(const std::string& path) {
 
 int RunModelEvaluator(int argc, char** argv) {
   std::string model_path, reference_path, output_path, bundler_list_path;
-  std::string reference_format_name = "auto", alignment_name = "sim3";
+  std::string reference_format_name = "auto";
+  colmap::SfmEvaluationOptions eval_options;
   OptionManager options("lisfm model_evaluator",
                         "score a COLMAP model's cameras against reference cameras: rotation and "
                         "position errors after alignment, relative-pose AUC");
@@ -83,9 +86,7 @@ int RunModelEvaluator(int argc, char** argv) {
                             "Bundler .out file");
   options.AddChoice("reference_format", &reference_format_name,
                     {"auto", "colmap", "strecha", "bundler"}, "format of --reference_path");
-  options.AddChoice("alignment", &alignment_name, {"sim3", "se3", "none"},
-                    "alignment of the estimated camera centres to the reference "
-                    "(se3 for metric models)");
+  AddSfmEvaluationOptions(&options, &eval_options);
   options.AddString("bundler_list_path", &bundler_list_path,
                     "Bundler image list (one name per camera); default list.txt or images/ "
                     "beside the .out file");
@@ -98,8 +99,6 @@ int RunModelEvaluator(int argc, char** argv) {
   if (reference_format == colmap::ReferenceFormat::kAuto) {
     reference_format = colmap::DetectReferenceFormat(reference_path);
   }
-  colmap::SfmEvaluationOptions eval_options;
-  THROW_CHECK(ParseAlignmentType(alignment_name, &eval_options.alignment));
 
   const std::string model_folder = ResolveModelFolder(model_path);
   const colmap::Reconstruction model = colmap::ReadModel(model_folder);
@@ -142,7 +141,7 @@ int RunModelEvaluator(int argc, char** argv) {
     const std::string parent = std::filesystem::path(output_path).parent_path().string();
     if (!parent.empty()) CreateDirs(parent);
     WriteFileAtomically(output_path,
-                        colmap::SfmEvaluationToJson(
+                        SfmEvaluationToJson(
                             ev, {{"model_path", model_folder},
                                  {"reference_path", reference_path},
                                  {"reference_format", colmap::ReferenceFormatName(reference_format)}}));

@@ -10,6 +10,7 @@
 #include <string>
 
 #include "apps/commands.h"
+#include "apps/option_sections.h"
 #include "core/errors.h"
 #include "core/file_utils.h"
 #include "core/io/rig_io.h"
@@ -31,28 +32,10 @@ int RunSimulate(int argc, char** argv) {
                         "simulate a HILTI-style recording with exact ground truth");
   sim::SimulatorOptions sim_options;
   std::string rig_path;
-  options.AddString("scene", &sim_options.scene,
-                    "office | staircase | hall, or a configs/sim_*.yaml scene file");
-  options.AddString("trajectory_path", &sim_options.trajectory_path,
-                    "TUM file of real motion (world_from_imu) to follow instead of walking");
-  options.AddDouble("duration", &sim_options.duration,
-                    "sequence length in s (with --trajectory_path: at most the file's, <= 0 all)");
-  options.AddDouble("camera_rate", &sim_options.camera_rate, "rig frames per second (0: none)");
-  options.AddString("lidars", &sim_options.lidars, "comma list: spinning, livox (or none)");
-  options.AddDouble("noise_scale", &sim_options.noise_scale,
-                    "multiplies all sensor noise and biases (0: exact measurements)");
-  options.AddInt("seed", &sim_options.seed, "seed of scene, texture, motion and noise");
-  options.AddRequiredString("output_path", &sim_options.output_path,
-                            "sequence folder to create");
+  AddSimulatorOptions(&options, &sim_options);
   options.AddString("rig_path", &rig_path,
                     "rig YAML (default: configs/hilti2022.yaml, the HILTI 2022 rig)");
-  options.AddInt("supersampling", &sim_options.supersampling, "camera rays per pixel = n x n");
-  options.AddBool("color", &sim_options.color, "colour images instead of grayscale");
-  options.AddBool("rgbd", &sim_options.rgbd, "add an RGB-D camera (rgbd0/, 640x480)");
-  options.AddDouble("rgbd_rate", &sim_options.rgbd_rate, "RGB-D frames per second");
-  options.AddBool("overwrite", &sim_options.overwrite, "replace an existing output folder");
   if (!options.Parse(argc, argv)) return 0;
-  sim_options.Check();
 
   Rig rig;
   if (!rig_path.empty()) {

@@ -191,7 +191,7 @@ std::vector<PreparedPair> Prepare(const std::string& type, int count, uint32_t s
     scene_options.furniture_per_room = 5;
   }
   try {
-    scene_options.Check("scene");
+    scene_options.CheckOrThrow("scene");
   } catch (const InputError& e) {
     // Should sim's own Check reject a default scene (a width below its lower bound),
     // use 6 m, a width it accepts for every scene type.

@@ -8,6 +8,7 @@
 #include <limits>
 
 #include "core/errors.h"
+#include "core/option_check.h"
 
 namespace lisfm {
 
@@ -136,10 +137,13 @@ Sim3 AlignPositions(const std::vector<Vec3>& estimate_positions,
 }
 
 bool TrajectoryEvaluationOptions::Check() const {
-  if (max_dt_ns < 0) return false;
-  for (const double d : rpe_distances_m) {
-    if (!(d > 0) || !std::isfinite(d)) return false;
-  }
+  CHECK_OPTION_GE(max_dt_ns, 0);
+  CHECK_OPTION_MSG(
+      rpe_distances_m,
+      std::all_of(rpe_distances_m.begin(),
+                  rpe_distances_m.end(),
+                  [](double d) { return d > 0 && std::isfinite(d); }),
+      "a list of distances > 0");
   return true;
 }
 
@@ -254,18 +258,22 @@ TrajectoryEvaluation EvaluateTrajectory(
 }
 
 bool HiltiScoreOptions::Check() const {
-  if (max_dt_ns < 0 || thresholds_m.empty() ||
-      thresholds_m.size() != band_points.size()) {
-    return false;
+  CHECK_OPTION_MSG(tip_in_imu, tip_in_imu.allFinite(), "finite");
+  CHECK_OPTION_GE(max_dt_ns, 0);
+  bool bands_ok =
+      !thresholds_m.empty() && thresholds_m.size() == band_points.size();
+  for (size_t i = 0; bands_ok && i < thresholds_m.size(); ++i) {
+    bands_ok = thresholds_m[i] > 0 && std::isfinite(thresholds_m[i]) &&
+               band_points[i] > 0 &&
+               (i == 0 || (thresholds_m[i] > thresholds_m[i - 1] &&
+                           band_points[i] <= band_points[i - 1]));
   }
-  for (size_t i = 0; i < thresholds_m.size(); ++i) {
-    if (!(thresholds_m[i] > 0) || band_points[i] <= 0) return false;
-    if (i > 0 && (thresholds_m[i] <= thresholds_m[i - 1] ||
-                  band_points[i] > band_points[i - 1])) {
-      return false;
-    }
-  }
-  return tip_in_imu.allFinite();
+  CHECK_OPTION_MSG(
+      thresholds_m,
+      bands_ok,
+      "increasing thresholds > 0, one per band_points entry (positive, "
+      "non-increasing)");
+  return true;
 }
 
 int HiltiPointsForError(double error_m, const HiltiScoreOptions& options) {

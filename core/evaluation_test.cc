@@ -15,6 +15,7 @@
 
 #include "core/errors.h"
 #include "core/io/trajectory_io.h"
+#include "tests/common/option_check_test.h"
 #include "tests/common/test_utils.h"
 
 namespace lisfm {
@@ -297,6 +298,32 @@ TEST(Evaluation, RpeOverDistanceOnAStraightLine) {
       EvaluateTrajectory(
           Trajectory(ref), Trajectory(est), Options(AlignmentType::kSE3)),
       InputError);
+}
+
+TEST(EvaluationOptions, CheckRejectsEachFieldOutOfRange) {
+  using T = TrajectoryEvaluationOptions;
+  test::ExpectCheckRejects<T>({
+      {"max_dt_ns", [](T* o) { o->max_dt_ns = -1; }},
+      {"rpe_distances_m",
+       [](T* o) {
+         o->rpe_distances_m = {1.0, 0.0};
+       }},
+      {"rpe_distances_m", [](T* o) { o->rpe_distances_m = {std::nan("")}; }},
+  });
+  using H = HiltiScoreOptions;
+  test::ExpectCheckRejects<H>({
+      {"tip_in_imu", [](H* o) { o->tip_in_imu.x() = std::nan(""); }},
+      {"max_dt_ns", [](H* o) { o->max_dt_ns = -1; }},
+      {"thresholds_m", [](H* o) { o->thresholds_m.clear(); }},
+      {"thresholds_m",
+       [](H* o) { o->thresholds_m.pop_back(); }},  // one per band
+      {"thresholds_m", [](H* o) { o->thresholds_m[0] = 0.0; }},
+      {"thresholds_m",
+       [](H* o) { o->thresholds_m[1] = o->thresholds_m[0]; }},  // increasing
+      {"thresholds_m",
+       [](H* o) { o->band_points[1] = 11; }},  // points non-increasing
+      {"thresholds_m", [](H* o) { o->band_points.back() = 0; }},
+  });
 }
 
 TEST(HiltiScore, PointsPerBand) {

@@ -12,6 +12,7 @@
 #include <tbb/parallel_reduce.h>
 
 #include "core/errors.h"
+#include "core/option_check.h"
 #include "icp/icp_covariance.h"
 #include "icp/icp_internal.h"
 
@@ -90,9 +91,16 @@ class PointToPlaneModel : public SgldModel {
 }  // namespace
 
 bool SgldOptions::Check() const {
-  return num_iterations > 0 && burn_in >= 0 && burn_in < num_iterations && thinning >= 1 &&
-         batch_size >= 1 && step_size > 0 && step_size < 2 && metric_decay >= 0 &&
-         metric_decay < 1 && damping_sigma_rotation_rad > 0 && damping_sigma_translation_m > 0;
+  CHECK_OPTION_GE(num_iterations, 1);
+  CHECK_OPTION_GE(burn_in, 0);
+  CHECK_OPTION_LT(burn_in, num_iterations);
+  CHECK_OPTION_GE(thinning, 1);
+  CHECK_OPTION_GE(batch_size, 1);
+  CHECK_OPTION_MSG(step_size, step_size > 0 && step_size < 2, "in (0, 2)");
+  CHECK_OPTION_MSG(metric_decay, metric_decay >= 0 && metric_decay < 1, "in [0, 1)");
+  CHECK_OPTION_GT(damping_sigma_rotation_rad, 0.0);
+  CHECK_OPTION_GT(damping_sigma_translation_m, 0.0);
+  return true;
 }
 
 IcpOptions BayesianDefaultIcpOptions() {
@@ -115,11 +123,20 @@ IcpOptions BayesianIcpOptions::LikelihoodAssociation() const {
 }
 
 bool BayesianIcpOptions::Check() const {
-  return icp.Check() && normal_neighbors >= 3 && sgld.Check() && noise_sigma_m >= 0 && noise_sigma_scale > 0 &&
-         correlation_length_m >= 0 && num_correlation_cells >= 0 && num_correlation_cells != 1 &&
-         jackknife_leverage_power >= 0 && refine_max_correspondence_distance_m >= 0 &&
-         prior_sigma_rotation_rad >= 0 && prior_sigma_translation_m >= 0 &&
-         correspondence_variance.Check();
+  CHECK_OPTION_NESTED(icp);
+  CHECK_OPTION_MSG(normal_neighbors, normal_neighbors >= 3 && normal_neighbors <= 64, "in [3, 64]");
+  CHECK_OPTION_NESTED(sgld);
+  CHECK_OPTION_GE(noise_sigma_m, 0.0);
+  CHECK_OPTION_GT(noise_sigma_scale, 0.0);
+  CHECK_OPTION_GE(correlation_length_m, 0.0);
+  CHECK_OPTION_MSG(num_correlation_cells, num_correlation_cells == 0 || num_correlation_cells >= 2,
+                   "0 or >= 2");
+  CHECK_OPTION_GE(prior_sigma_rotation_rad, 0.0);
+  CHECK_OPTION_GE(prior_sigma_translation_m, 0.0);
+  CHECK_OPTION_NESTED(correspondence_variance);
+  CHECK_OPTION_GE(jackknife_leverage_power, 0.0);
+  CHECK_OPTION_GE(refine_max_correspondence_distance_m, 0.0);
+  return true;
 }
 
 SgldResult SampleSgld(const SgldModel& model,
@@ -127,7 +144,7 @@ SgldResult SampleSgld(const SgldModel& model,
                       double noise_sigma,
                       const SgldOptions& options,
                       const PosePrior& prior) {
-  THROW_CHECK_MSG(options.Check(), "invalid SgldOptions");
+  THROW_CHECK_OPTIONS(options);
   THROW_CHECK_MSG(prior.information.allFinite() &&
                       Eigen::SelfAdjointEigenSolver<Mat6>(prior.information).eigenvalues()(0) >= 0,
                   "PosePrior information must be finite and positive semi-definite");
@@ -254,7 +271,7 @@ BayesianIcpResult RegisterBayesian(const PointSet& source,
                                    const SE3& initial,
                                    const BayesianIcpOptions& options,
                                    const std::vector<Eigen::Vector3f>& source_normals) {
-  THROW_CHECK_MSG(options.Check(), "invalid BayesianIcpOptions");
+  THROW_CHECK_OPTIONS(options);
   BayesianIcpResult result;
   result.icp = RegisterPointToPlane(source, target, initial, options.icp, source_normals);
   // The likelihood's association: the ICP's, with the correspondence distance

@@ -11,6 +11,7 @@
 #include <tbb/parallel_reduce.h>
 
 #include "core/errors.h"
+#include "core/option_check.h"
 #include "icp/icp_internal.h"
 
 namespace lisfm {
@@ -213,19 +214,32 @@ double RobustLoss(RobustKernel kernel, double r, double k) {
   return 0.5 * r * r;
 }
 
+namespace {
+
+bool IsRobustKernelName(const std::string& name) {
+  return name == "none" || name == "huber" || name == "cauchy" || name == "geman_mcclure";
+}
+
+}  // namespace
+
 bool IcpOptions::Check() const {
-  bool kernel_ok = true;
-  try {
-    RobustKernelFromString(kernel);
-  } catch (const UsageError&) {
-    kernel_ok = false;
-  }
-  return kernel_ok && max_iterations > 0 && max_correspondence_distance_m > 0 &&
-         max_normal_angle_deg > 0 && max_normal_angle_deg <= 180 && min_planarity >= 0 &&
-         min_planarity <= 1 && kernel_scale_m > 0 && convergence_rotation_rad >= 0 &&
-         convergence_translation_m >= 0 && min_inliers >= 6 && degeneracy_threshold >= 0 &&
-         coarse_stride >= 1 && coarse_levels >= 0 && coarse_levels <= 8 &&
-         coarse_min_points >= 1 && max_inner_iterations >= 0 && visibility_gate_m >= 0;
+  CHECK_OPTION_GE(max_iterations, 1);
+  CHECK_OPTION_GE(max_inner_iterations, 0);
+  CHECK_OPTION_GT(max_correspondence_distance_m, 0.0);
+  CHECK_OPTION_MSG(max_normal_angle_deg, max_normal_angle_deg > 0 && max_normal_angle_deg <= 180,
+                   "in (0, 180]");
+  CHECK_OPTION_MSG(min_planarity, min_planarity >= 0 && min_planarity <= 1, "in [0, 1]");
+  CHECK_OPTION_MSG(kernel, IsRobustKernelName(kernel), "one of none, huber, cauchy, geman_mcclure");
+  CHECK_OPTION_GT(kernel_scale_m, 0.0);
+  CHECK_OPTION_GE(convergence_rotation_rad, 0.0);
+  CHECK_OPTION_GE(convergence_translation_m, 0.0);
+  CHECK_OPTION_GE(min_inliers, 6);
+  CHECK_OPTION_GE(coarse_stride, 1);
+  CHECK_OPTION_MSG(coarse_levels, coarse_levels >= 0 && coarse_levels <= 8, "in [0, 8]");
+  CHECK_OPTION_GE(coarse_min_points, 1);
+  CHECK_OPTION_GE(degeneracy_threshold, 0.0);
+  CHECK_OPTION_GE(visibility_gate_m, 0.0);
+  return true;
 }
 
 // ---- targets ----
@@ -313,7 +327,7 @@ KdTreeTarget::KdTreeTarget(PointSet points,
   if (tree_.size() < 3) {
     throw InputError("target", "", fmt::format("expected at least 3 points, found {}", tree_.size()));
   }
-  THROW_CHECK_MSG(normal_options.Check(), "invalid NormalOptions");
+  THROW_CHECK_OPTIONS(normal_options);
   normals_.normals.assign(tree_.size(), Eigen::Vector3f::Zero());
   normals_.planarity.assign(tree_.size(), 0.f);
   state_ = std::make_unique<std::atomic<uint8_t>[]>(tree_.size());  // value-initialised: 0
@@ -604,7 +618,7 @@ IcpResult RegisterPointToPlane(const PointSet& source,
                                const SE3& initial,
                                const IcpOptions& options,
                                const std::vector<Eigen::Vector3f>& source_normals) {
-  THROW_CHECK_MSG(options.Check(), "invalid IcpOptions");
+  THROW_CHECK_OPTIONS(options);
   CheckIcpSource(source, source_normals);
   IcpResult result;
   result.target_from_source = initial;

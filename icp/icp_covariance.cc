@@ -12,6 +12,7 @@
 #include <tbb/parallel_for.h>
 
 #include "core/errors.h"
+#include "core/option_check.h"
 #include "icp/icp_internal.h"
 
 namespace lisfm {
@@ -127,7 +128,10 @@ Eigen::Matrix3d PlaneFitNormalCovariance(const PlaneFit& fit, double max_tilt_va
 }
 
 bool CorrespondenceVarianceOptions::Check() const {
-  return plane_variance_weight >= 0 && max_tilt_variance_rad2 >= 0 && floor_m2 > 0;
+  CHECK_OPTION_GE(plane_variance_weight, 0.0);
+  CHECK_OPTION_GE(max_tilt_variance_rad2, 0.0);
+  CHECK_OPTION_GT(floor_m2, 0.0);
+  return true;
 }
 
 namespace {
@@ -137,7 +141,7 @@ constexpr uint8_t kStatsUnknown = 0, kStatsBusy = 1, kStatsReady = 2;
 CorrespondenceVarianceModel::CorrespondenceVarianceModel(const KdTreeTarget& target,
                                                          const CorrespondenceVarianceOptions& options)
     : target_(target), options_(options), stats_(target.size()) {
-  THROW_CHECK_MSG(options.Check(), "invalid CorrespondenceVarianceOptions");
+  THROW_CHECK_OPTIONS(options);
   state_ = std::make_unique<std::atomic<uint8_t>[]>(target.size());  // value-initialised: 0
 }
 
@@ -199,7 +203,7 @@ ClusterSandwich ComputeClusterSandwich(const PointSet& source,
                                        std::vector<uint32_t>* matched_target_indices,
                                        double leverage_power) {
   CheckIcpSource(source, source_normals);
-  THROW_CHECK_MSG(options.Check(), "invalid IcpOptions");
+  THROW_CHECK_OPTIONS(options);
   THROW_CHECK_GE(cell_size_m, 0.0);
   THROW_CHECK_GE(leverage_power, 0.0);
   THROW_CHECK_MSG(variance_model == nullptr || &variance_model->target() == &target,

@@ -30,7 +30,7 @@ struct HeldOutRuns {
 void RunPairs(const std::string& type, int count, uint32_t seed, HeldOutRuns* runs) {
   sim::SceneOptions scene_options = sim::DefaultSceneOptions(type);
   try {
-    scene_options.Check("scene");
+    scene_options.CheckOrThrow("scene");
   } catch (const InputError&) {
     scene_options.width = 6.0;  // as the benchmark, should sim reject the default width
   }

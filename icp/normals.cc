@@ -7,11 +7,14 @@
 #include <tbb/parallel_for.h>
 
 #include "core/errors.h"
+#include "core/option_check.h"
 
 namespace lisfm {
 
 bool NormalOptions::Check() const {
-  return num_neighbors >= 3 && num_neighbors <= 64 && max_radius_m > 0;
+  CHECK_OPTION_MSG(num_neighbors, num_neighbors >= 3 && num_neighbors <= 64, "in [3, 64]");
+  CHECK_OPTION_GT(max_radius_m, 0.0);
+  return true;
 }
 
 bool EstimateNormalAt(const KdTree& tree,
@@ -56,7 +59,7 @@ bool EstimateNormalAt(const KdTree& tree,
 Normals EstimateNormals(const KdTree& tree,
                         const NormalOptions& options,
                         const Eigen::Vector3f& viewpoint) {
-  THROW_CHECK_MSG(options.Check(), "invalid NormalOptions");
+  THROW_CHECK_OPTIONS(options);
   const PointSet& pts = tree.points();
   Normals out;
   out.normals.assign(pts.size(), Eigen::Vector3f::Zero());

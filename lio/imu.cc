@@ -4,11 +4,17 @@
 
 #include <fmt/format.h>
 
+#include "core/option_check.h"
+
 namespace lisfm {
 
 bool ImuInitializerOptions::Check() const {
-  return min_duration_s > 0 && min_samples >= 10 && max_gyro_std > 0 && max_accel_std > 0 &&
-         gravity_magnitude > 0;
+  CHECK_OPTION_GT(min_duration_s, 0.0);
+  CHECK_OPTION_GE(min_samples, 10);
+  CHECK_OPTION_GT(max_gyro_std, 0.0);
+  CHECK_OPTION_GT(max_accel_std, 0.0);
+  CHECK_OPTION_GT(gravity_magnitude, 0.0);
+  return true;
 }
 
 ImuInitialization InitializeFromStaticImu(const std::vector<ImuSample>& samples,

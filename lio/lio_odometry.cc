@@ -14,6 +14,7 @@
 
 #include "core/errors.h"
 #include "core/logging.h"
+#include "core/option_check.h"
 
 namespace lisfm {
 
@@ -65,12 +66,27 @@ struct Normal6 {
 }  // namespace
 
 bool LioOptions::Check() const {
-  return imu_noise_inflation > 0 && point_stride >= 1 && reassociate_translation >= 0 &&
-         reassociate_rotation >= 0 && scan_voxel_size >= 0 && min_range >= 0 &&
-         max_range > min_range && num_neighbours >= 3 && max_neighbour_distance > 0 &&
-         max_plane_residual > 0 && max_point_residual > 0 && point_noise_std > 0 &&
-         max_iterations >= 1 && convergence_rotation > 0 && convergence_translation > 0 &&
-         map.Check() && keyframe_distance > 0 && keyframe_angle_deg > 0 && init.Check();
+  CHECK_OPTION_GT(imu_noise_inflation, 0.0);
+  CHECK_OPTION_GE(point_stride, 1);
+  CHECK_OPTION_GE(scan_voxel_size, 0.0);
+  CHECK_OPTION_GE(min_range, 0.0);
+  CHECK_OPTION_GT(max_range, min_range);
+  CHECK_OPTION_GE(num_neighbours, 3);
+  CHECK_OPTION_GT(max_neighbour_distance, 0.0);
+  CHECK_OPTION_GT(max_plane_residual, 0.0);
+  CHECK_OPTION_GT(max_point_residual, 0.0);
+  CHECK_OPTION_GT(point_noise_std, 0.0);
+  CHECK_OPTION_GE(max_iterations, 1);
+  CHECK_OPTION_GT(convergence_rotation, 0.0);
+  CHECK_OPTION_GT(convergence_translation, 0.0);
+  CHECK_OPTION_GE(reassociate_translation, 0.0);
+  CHECK_OPTION_GE(reassociate_rotation, 0.0);
+  CHECK_OPTION_GE(degeneracy_threshold, 0.0);
+  CHECK_OPTION_NESTED(map);
+  CHECK_OPTION_GT(keyframe_distance, 0.0);
+  CHECK_OPTION_GT(keyframe_angle_deg, 0.0);
+  CHECK_OPTION_NESTED(init);
+  return true;
 }
 
 LioOdometry::LioOdometry(const LioOptions& options,
@@ -82,7 +98,9 @@ LioOdometry::LioOdometry(const LioOptions& options,
       imu_from_lidar_(std::move(imu_from_lidar)),
       lidar_time_offsets_s_(std::move(lidar_time_offsets_s)),
       map_(std::make_unique<VoxelMap>(options.map)) {
-  if (!options_.Check()) throw InputError("lio: invalid options (see lisfm lio -h for ranges)");
+  if (!options_.Check()) {
+    throw InputError("lio: invalid options: " + LastOptionCheckFailure().ToString());
+  }
   THROW_CHECK_EQ(imu_from_lidar_.size(), lidar_time_offsets_s_.size());
   if (imu_from_lidar_.empty()) throw InputError("lio: no LiDAR extrinsics given");
   P_.setZero();

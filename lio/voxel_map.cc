@@ -4,19 +4,24 @@
 #include <cmath>
 
 #include "core/errors.h"
+#include "core/option_check.h"
 
 namespace lisfm {
 
 bool VoxelMapOptions::Check() const {
-  return voxel_size > 0 && resolution >= 0 && resolution < voxel_size &&
-         max_points_per_voxel > 0 && max_voxels > 0;
+  CHECK_OPTION_GT(voxel_size, 0.0);
+  CHECK_OPTION_GE(resolution, 0.0);
+  CHECK_OPTION_LT(resolution, voxel_size);
+  CHECK_OPTION_GE(max_points_per_voxel, 1);
+  CHECK_OPTION_GE(max_voxels, 1u);
+  return true;
 }
 
 VoxelMap::VoxelMap(const VoxelMapOptions& options)
     : options_(options),
       inv_voxel_size_(static_cast<float>(1.0 / options.voxel_size)),
       min_sq_spacing_(static_cast<float>(options.resolution * options.resolution)) {
-  THROW_CHECK_MSG(options.Check(), "invalid VoxelMapOptions");
+  THROW_CHECK_OPTIONS(options);
   // Centre, 6 faces, 12 edges.
   for (int dx = -1; dx <= 1; ++dx)
     for (int dy = -1; dy <= 1; ++dy)

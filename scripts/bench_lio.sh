@@ -37,8 +37,8 @@ for seq in office_exp04 staircase hall; do
     "$LISFM" lio --input_path "$WORK/$seq" --output_path "$out" --method "$method" \
       --write_keyframes 0 --quiet ${LIO_ARGS[@]+"${LIO_ARGS[@]}"}
     wall=$(( $(date +%s%N) - start ))
-    "$LISFM" evaluate --reference "$WORK/$seq/groundtruth.txt" --estimate "$out/trajectory.txt" \
-      --max_dt 0.006 --output_path "$out/eval" --quiet > /dev/null
+    "$LISFM" evaluate --reference_path "$WORK/$seq/groundtruth.txt" \
+      --estimate_path "$out/trajectory.txt" --max_dt 0.006 --output_path "$out/eval" --quiet > /dev/null
     rows+=("$(/usr/bin/python3 - "$seq" "$method" "$out" "$wall" <<'PY'
 import csv, json, statistics, sys
 seq, method, out, wall = sys.argv[1], sys.argv[2], sys.argv[3], float(sys.argv[4]) * 1e-9

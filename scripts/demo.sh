@@ -26,20 +26,20 @@ echo "== 1/4 simulate a 30 s office recording =="
 echo "== 2/4 LiDAR-inertial odometry =="
 "$LISFM" lio --input_path "$OUT/sequence" --output_path "$OUT/lio"
 echo "== 3/4 evaluate the odometry against the simulator's ground truth =="
-"$LISFM" evaluate --reference "$OUT/sequence/groundtruth.txt" --estimate "$OUT/lio/trajectory.txt" \
-  --max_dt 0.006 --output_path "$OUT/lio_eval"
-"$LISFM" evaluate --reference "$OUT/sequence/controlpoints.txt" --reference_type control_points \
-  --estimate "$OUT/lio/trajectory.txt" --output_path "$OUT/lio_score"
+"$LISFM" evaluate --reference_path "$OUT/sequence/groundtruth.txt" \
+  --estimate_path "$OUT/lio/trajectory.txt" --max_dt 0.006 --output_path "$OUT/lio_eval"
+"$LISFM" evaluate --reference_path "$OUT/sequence/controlpoints.txt" \
+  --reference_type control_points --estimate_path "$OUT/lio/trajectory.txt" --output_path "$OUT/lio_score"
 
 GT_DIR="$LISFM_SHARED_DATA/hilti2022_groundtruth"
 LIO="$LISFM_SHARED_DATA/hilti_exp4_small/lidar/fastlio2_odom.txt"
 if [ -d "$GT_DIR" ] && [ -f "$LIO" ]; then
   echo "== 4/4 real data: FAST-LIO2 on HILTI 2022 exp04 vs ground truth =="
   DENSE="$GT_DIR/exp_04_construction_upper_level_easy_2_2022-03-03-11-48-59_imu.txt"
-  "$LISFM" evaluate --reference "$DENSE" --estimate "$LIO" --max_dt 0.05 \
+  "$LISFM" evaluate --reference_path "$DENSE" --estimate_path "$LIO" --max_dt 0.05 \
     --output_path "$OUT/fastlio2_exp04_eval"
-  "$LISFM" evaluate --reference "$GT_DIR/exp04_construction_upper_level.txt" \
-    --reference_type control_points --estimate "$LIO" --output_path "$OUT/fastlio2_exp04_score"
+  "$LISFM" evaluate --reference_path "$GT_DIR/exp04_construction_upper_level.txt" \
+    --reference_type control_points --estimate_path "$LIO" --output_path "$OUT/fastlio2_exp04_score"
 else
   echo "== 4/4 skipped: $LISFM_SHARED_DATA is missing =="
 fi

@@ -6,16 +6,27 @@
 #include <tbb/parallel_for.h>
 
 #include "core/errors.h"
+#include "core/option_check.h"
 
 namespace lisfm {
 namespace sim {
+
+bool CameraSimOptions::Check() const {
+  CHECK_OPTION_MSG(supersampling, supersampling >= 1 && supersampling <= 8, "in [1, 8]");
+  CHECK_OPTION_GT(exposure, 0.0);
+  CHECK_OPTION_GE(noise_sigma, 0.0);
+  CHECK_OPTION_GE(noise_scale, 0.0);
+  CHECK_OPTION_MSG(vignetting, vignetting >= 0 && vignetting <= 1, "in [0, 1]");
+  CHECK_OPTION_GT(max_range, 0.0);
+  return true;
+}
 
 CameraRenderer::CameraRenderer(const Scene& scene,
                                const CameraModel& model,
                                const TextureOptions& texture,
                                const CameraSimOptions& options)
     : scene_(scene), model_(model), texture_(texture), options_(options) {
-  THROW_CHECK_GE(options_.supersampling, 1);
+  THROW_CHECK_OPTIONS(options_);
   THROW_CHECK_GT(model_.width, 0);
   THROW_CHECK_GT(model_.height, 0);
   const int n = options_.supersampling;

@@ -36,6 +36,7 @@ struct CameraSimOptions {
   double noise_scale = 1.0;     // 0 = noise-free
   double vignetting = 0.15;     // relative darkening at the image corner
   double max_range = 200.0;     // m; rays that hit nothing render black
+  bool Check() const;
 };
 
 class CameraRenderer {

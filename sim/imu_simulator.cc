@@ -4,6 +4,7 @@
 #include <random>
 
 #include "core/errors.h"
+#include "core/option_check.h"
 
 namespace lisfm {
 namespace sim {
@@ -18,6 +19,13 @@ ImuSample ExactImu(const SplineTrajectory& trajectory, TimestampNs t_ns) {
   return m;
 }
 
+bool ImuSimOptions::Check() const {
+  CHECK_OPTION_GE(noise_scale, 0.0);
+  CHECK_OPTION_GE(initial_gyro_bias_sigma, 0.0);
+  CHECK_OPTION_GE(initial_accel_bias_sigma, 0.0);
+  return true;
+}
+
 std::vector<ImuSample> SimulateImu(const SplineTrajectory& trajectory,
                                    const ImuNoise& noise,
                                    TimestampNs start_ns,
@@ -25,7 +33,7 @@ std::vector<ImuSample> SimulateImu(const SplineTrajectory& trajectory,
                                    const ImuSimOptions& options,
                                    std::vector<ImuBias>* biases) {
   THROW_CHECK_GT(noise.update_rate, 0.0);
-  THROW_CHECK_GE(options.noise_scale, 0.0);
+  THROW_CHECK_OPTIONS(options);
   const double rate = noise.update_rate;
   const double k = options.noise_scale;
   std::mt19937_64 rng(options.seed * 0x9E3779B97F4A7C15ULL + 11);

@@ -30,6 +30,7 @@ struct ImuSimOptions {
   double initial_gyro_bias_sigma = 2e-3;   // rad/s, per axis (BMI085 class offsets)
   double initial_accel_bias_sigma = 0.05;  // m/s^2, per axis
   uint64_t seed = 1;
+  bool Check() const;
 };
 
 // Samples at start_ns + k / noise.update_rate for every such time <= end_ns.

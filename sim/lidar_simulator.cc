@@ -4,6 +4,7 @@
 #include <random>
 
 #include "core/errors.h"
+#include "core/option_check.h"
 
 namespace lisfm {
 namespace sim {
@@ -18,6 +19,15 @@ float Intensity(const Texture& texture, const RayHit& hit,
 
 }  // namespace
 
+bool LidarSimOptions::Check() const {
+  CHECK_OPTION_GE(noise_scale, 0.0);
+  CHECK_OPTION_GE(range_sigma, 0.0);
+  CHECK_OPTION_GE(azimuth_steps, 1);
+  CHECK_OPTION_GT(livox_rate, 0.0);
+  CHECK_OPTION_MSG(livox_fov_deg, livox_fov_deg > 0 && livox_fov_deg <= 180, "in (0, 180]");
+  return true;
+}
+
 LidarSimulator::LidarSimulator(const Scene& scene,
                                const SplineTrajectory& trajectory,
                                const RigLidar& lidar,
@@ -26,7 +36,7 @@ LidarSimulator::LidarSimulator(const Scene& scene,
     : scene_(scene), trajectory_(trajectory), lidar_(lidar), texture_(texture),
       options_(options) {
   THROW_CHECK_GT(lidar_.scan_rate, 0.0);
-  THROW_CHECK_GT(options_.azimuth_steps, 0);
+  THROW_CHECK_OPTIONS(options_);
 }
 
 double LidarSimulator::RingElevation(int ring) const {

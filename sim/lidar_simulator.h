@@ -39,6 +39,7 @@ struct LidarSimOptions {
   double livox_rate = 100000;   // solid-state: points per second
   double livox_fov_deg = 70.4;  // solid-state: full circular field of view
   uint64_t seed = 1;
+  bool Check() const;
 };
 
 class LidarSimulator {

@@ -5,6 +5,7 @@
 #include <random>
 
 #include "core/errors.h"
+#include "core/option_check.h"
 
 namespace lisfm {
 namespace sim {
@@ -83,6 +84,15 @@ double Ramp(double x) {
 
 }  // namespace
 
+bool WalkingOptions::Check() const {
+  CHECK_OPTION_GT(speed, 0.0);
+  CHECK_OPTION_GE(stationary_s, 0.0);
+  CHECK_OPTION_GT(step_frequency, 0.0);
+  CHECK_OPTION_GE(sway_scale, 0.0);
+  CHECK_OPTION_GT(knot_spacing, 0.0);
+  return true;
+}
+
 SplineTrajectory GenerateWalking(const WalkingRoute& route,
                                  double duration_s,
                                  TimestampNs start_ns,
@@ -90,6 +100,7 @@ SplineTrajectory GenerateWalking(const WalkingRoute& route,
                                  const WalkingOptions& options,
                                  std::vector<StationaryPeriod>* stationary) {
   THROW_CHECK_GT(duration_s, 0.0);
+  THROW_CHECK_OPTIONS(options);
   const double dt = options.knot_spacing;
   // Rests at start, middle and end; shorter for short sequences.
   const double rest = std::min(options.stationary_s, duration_s / 6.0);

@@ -31,6 +31,7 @@ struct WalkingOptions {
   double step_frequency = 1.8; // gait frequency, Hz (vertical bob; sway at half)
   double sway_scale = 1.0;     // multiplies bob/sway/roll/pitch/yaw-jitter amplitudes
   double knot_spacing = 0.1;   // spline knot spacing, s
+  bool Check() const;
 };
 
 // Walks `route` (rounded corners, heading along the path, gait bob and sway,

@@ -11,40 +11,40 @@
 
 #include "core/errors.h"
 #include "core/file_utils.h"
+#include "core/option_check.h"
 
 namespace lisfm {
 namespace sim {
 
-void SceneOptions::Check(const std::string& where) const {
-  auto require = [&](bool ok, const std::string& field, const std::string& expected, double v) {
-    if (!ok) {
-      throw InputError(where, "field " + field,
-                       "expected " + expected + ", found " + std::to_string(v));
-    }
-  };
-  if (type != "office" && type != "staircase" && type != "hall") {
-    throw InputError(where, "field type",
-                     "expected office, staircase or hall, found '" + type + "'");
-  }
-  require(length >= 10.0 && length <= 1000.0, "length", "10..1000 m", length);
+bool SceneOptions::Check() const {
+  CHECK_OPTION_MSG(type, type == "office" || type == "staircase" || type == "hall",
+                   "one of office, staircase, hall");
+  CHECK_OPTION_MSG(length, length >= 10.0 && length <= 1000.0, "in [10, 1000] m");
   // The staircase is a narrow shaft (two 1.3 m flights); rooms need 6 m.
-  require(width >= (type == "staircase" ? 2.0 : 6.0) && width <= 1000.0, "width",
-          type == "staircase" ? "2..1000 m" : "6..1000 m", width);
-  require(height >= 2.2 && height <= 20.0, "height", "2.2..20 m", height);
-  require(corridor_width >= 1.5 && corridor_width <= 10.0, "corridor_width", "1.5..10 m",
-          corridor_width);
-  require(room_depth >= 2.0 && room_depth <= 20.0, "room_depth", "2..20 m", room_depth);
-  require(type != "office" || width - 2 * room_depth - 2 * corridor_width >= 2.0, "width",
-          ">= 2*room_depth + 2*corridor_width + 2 m for an office", width);
-  require(type != "office" || length - 2 * room_depth - 2 * corridor_width >= 2.0, "length",
-          ">= 2*room_depth + 2*corridor_width + 2 m for an office", length);
-  require(furniture_per_room >= 0 && furniture_per_room <= 50, "furniture_per_room", "0..50",
-          furniture_per_room);
-  require(pillar_spacing >= 4.0 && pillar_spacing <= 50.0, "pillar_spacing", "4..50 m",
-          pillar_spacing);
-  require(car_density >= 0.0 && car_density <= 1.0, "car_density", "0..1", car_density);
-  require(texture_scale > 0.1 && texture_scale < 10.0, "texture_scale", "0.1..10",
-          texture_scale);
+  CHECK_OPTION_MSG(width, width >= (type == "staircase" ? 2.0 : 6.0) && width <= 1000.0,
+                   type == "staircase" ? "in [2, 1000] m" : "in [6, 1000] m");
+  CHECK_OPTION_MSG(height, height >= 2.2 && height <= 20.0, "in [2.2, 20] m");
+  CHECK_OPTION_MSG(corridor_width, corridor_width >= 1.5 && corridor_width <= 10.0,
+                   "in [1.5, 10] m");
+  CHECK_OPTION_MSG(room_depth, room_depth >= 2.0 && room_depth <= 20.0, "in [2, 20] m");
+  CHECK_OPTION_MSG(width, type != "office" || width - 2 * room_depth - 2 * corridor_width >= 2.0,
+                   ">= 2*room_depth + 2*corridor_width + 2 m for an office");
+  CHECK_OPTION_MSG(length,
+                   type != "office" || length - 2 * room_depth - 2 * corridor_width >= 2.0,
+                   ">= 2*room_depth + 2*corridor_width + 2 m for an office");
+  CHECK_OPTION_MSG(furniture_per_room, furniture_per_room >= 0 && furniture_per_room <= 50,
+                   "in [0, 50]");
+  CHECK_OPTION_MSG(pillar_spacing, pillar_spacing >= 4.0 && pillar_spacing <= 50.0,
+                   "in [4, 50] m");
+  CHECK_OPTION_MSG(car_density, car_density >= 0.0 && car_density <= 1.0, "in [0, 1]");
+  CHECK_OPTION_MSG(texture_scale, texture_scale > 0.1 && texture_scale < 10.0, "in (0.1, 10)");
+  return true;
+}
+
+void SceneOptions::CheckOrThrow(const std::string& where) const {
+  if (Check()) return;
+  const OptionCheckFailure& f = LastOptionCheckFailure();
+  throw InputError(where, "field " + f.name, "expected " + f.requirement + ", found " + f.value);
 }
 
 SceneOptions DefaultSceneOptions(const std::string& type) {
@@ -105,7 +105,7 @@ SceneOptions ReadSceneOptions(const std::string& path) {
       throw InputError(path, "field " + key, "expected a number, " + e.msg);
     }
   }
-  o.Check(path);
+  o.CheckOrThrow(path);
   return o;
 }
 
@@ -439,7 +439,7 @@ Scene::~Scene() = default;
 
 std::unique_ptr<Scene> Scene::Generate(const SceneOptions& options,
                                        const std::vector<Vec3>& keep_clear) {
-  options.Check("scene options");
+  options.CheckOrThrow("scene options");
   auto scene = std::make_unique<Scene>();
   scene->options_ = options;
   Builder builder(static_cast<uint32_t>(options.seed) * 2654435761u + 17u);

@@ -36,8 +36,10 @@ struct SceneOptions {
   double car_density = 0.6;     // fraction of hall parking bays occupied
   double texture_scale = 1.0;   // multiplies the spatial frequencies of the texture
 
-  // Throws InputError naming `where` for out-of-range values.
-  void Check(const std::string& where) const;
+  bool Check() const;
+  // Throws InputError naming `where` (a scene file) and the failing field
+  // unless Check() passes.
+  void CheckOrThrow(const std::string& where) const;
 };
 
 // Returns the defaults of a scene type; throws InputError for an unknown type.

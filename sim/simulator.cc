@@ -22,6 +22,7 @@
 #include "core/io/rig_io.h"
 #include "core/io/trajectory_io.h"
 #include "core/logging.h"
+#include "core/option_check.h"
 #include "core/progress.h"
 #include "sim/camera_simulator.h"
 #include "sim/imu_simulator.h"
@@ -97,38 +98,26 @@ RigLidar DefaultLidar(LidarType type) {
   return lidar;
 }
 
-std::string FormatDouble(double v) {
-  std::ostringstream s;
-  s << std::setprecision(9) << v;
-  return s.str();
+bool IsLidarList(const std::string& lidars) {
+  for (const std::string& l : SplitList(lidars)) {
+    if (l != "spinning" && l != "livox" && l != "none") return false;
+  }
+  return true;
 }
 
 }  // namespace
 
-void SimulatorOptions::Check() const {
-  if (output_path.empty()) throw UsageError("--output_path is required");
-  if (!(duration <= 1e5)) throw UsageError("--duration must be <= 1e5 s");
-  if (trajectory_path.empty() && !(duration > 0.5)) {
-    throw UsageError("--duration must be > 0.5 s, found " + FormatDouble(duration));
-  }
-  if (!(camera_rate >= 0 && camera_rate <= 100)) {
-    throw UsageError("--camera_rate must be in [0, 100] Hz, found " + FormatDouble(camera_rate));
-  }
-  if (!(noise_scale >= 0 && noise_scale <= 100)) {
-    throw UsageError("--noise_scale must be in [0, 100], found " + FormatDouble(noise_scale));
-  }
-  if (supersampling < 1 || supersampling > 8) {
-    throw UsageError("--supersampling must be in [1, 8], found " + std::to_string(supersampling));
-  }
-  if (!(rgbd_rate > 0 && rgbd_rate <= 100)) {
-    throw UsageError("--rgbd_rate must be in (0, 100] Hz, found " + FormatDouble(rgbd_rate));
-  }
-  for (const std::string& l : SplitList(lidars)) {
-    if (l != "spinning" && l != "livox" && l != "none") {
-      throw UsageError("--lidars: expected a comma list of spinning, livox or none, found '" +
-                       l + "'");
-    }
-  }
+bool SimulatorOptions::Check() const {
+  CHECK_OPTION_MSG(output_path, !output_path.empty(), "a folder name (required)");
+  CHECK_OPTION_LE(duration, 1e5);
+  CHECK_OPTION_MSG(duration, !trajectory_path.empty() || duration > 0.5,
+                   "> 0.5 s without a trajectory_path");
+  CHECK_OPTION_MSG(camera_rate, camera_rate >= 0 && camera_rate <= 100, "in [0, 100] Hz");
+  CHECK_OPTION_MSG(noise_scale, noise_scale >= 0 && noise_scale <= 100, "in [0, 100]");
+  CHECK_OPTION_MSG(supersampling, supersampling >= 1 && supersampling <= 8, "in [1, 8]");
+  CHECK_OPTION_MSG(rgbd_rate, rgbd_rate > 0 && rgbd_rate <= 100, "in (0, 100] Hz");
+  CHECK_OPTION_MSG(lidars, IsLidarList(lidars), "a comma list of spinning, livox, none");
+  return true;
 }
 
 Rig PrepareRig(const Rig& input, const std::string& lidars) {
@@ -155,7 +144,7 @@ Rig PrepareRig(const Rig& input, const std::string& lidars) {
 SimulationSummary Simulate(const SimulatorOptions& options,
                            const Rig& input_rig,
                            const std::function<void(const std::string&)>& before_commit) {
-  options.Check();
+  THROW_CHECK_OPTIONS(options);
   const auto t_start = std::chrono::steady_clock::now();
   SimulationSummary summary;
   const std::string output = options.output_path;

@@ -39,8 +39,7 @@ struct SimulatorOptions {
   double rgbd_rate = 5.0;         // Hz
   bool overwrite = false;         // replace an existing output folder
 
-  // Throws UsageError (bad option values) naming the option.
-  void Check() const;
+  bool Check() const;
 };
 
 struct SimulationSummary {

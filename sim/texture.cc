@@ -7,6 +7,8 @@
 
 #include <tbb/parallel_for.h>
 
+#include "core/option_check.h"
+
 namespace lisfm {
 namespace sim {
 namespace {
@@ -176,9 +178,16 @@ const uint8_t* MipTile() {
 
 }  // namespace
 
+bool TextureOptions::Check() const {
+  CHECK_OPTION_GT(frequency_scale, 0.0f);
+  return true;
+}
+
 Texture::Texture(const TextureOptions& options)
     : options_(options), seed_mix_(Hash(options.seed * 0x9e3779b9U + 1U)), tile_(Tile()),
-      mip_(MipTile()) {}
+      mip_(MipTile()) {
+  THROW_CHECK_OPTIONS(options_);
+}
 
 inline void Texture::PatchCoordinates(uint32_t surface_id, const Eigen::Vector3f& p, int axis,
                                       float* x, float* y) const {

@@ -32,6 +32,7 @@ namespace sim {
 struct TextureOptions {
   uint32_t seed = 1;        // scene seed (combined with the surface id)
   float frequency_scale = 1.0f;  // multiplies all spatial frequencies
+  bool Check() const;
 };
 
 // Index (0, 1, 2) of the largest |component| of `normal` (ties: lowest index);

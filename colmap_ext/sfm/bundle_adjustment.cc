@@ -18,6 +18,7 @@
 #include "colmap_ext/sfm/schur_bundle_adjuster.h"
 #include "core/errors.h"
 #include "core/logging.h"
+#include "core/option_check.h"
 
 namespace lisfm {
 namespace colmap {
@@ -509,20 +510,26 @@ double UpdateTrackErrors(const std::set<size_t>& track_set, MapperState* state) 
 }  // namespace
 
 bool BundleAdjustmentOptions::Check() const {
-  return (loss_type == "trivial" || loss_type == "huber" ||
-          loss_type == "cauchy") &&
-         loss_scale > 0.0 && max_num_iterations >= 0 &&
-         function_tolerance >= 0.0 && gradient_tolerance >= 0.0 &&
-         parameter_tolerance >= 0.0 && dense_schur_max_frames >= 0 &&
-         max_tracks_per_image >= 0 &&
-         (solver == "auto" || solver == "ceres" || solver == "schur") &&
-         (num_threads == -1 || num_threads >= 1);
+  CHECK_OPTION_MSG(loss_type,
+                   loss_type == "trivial" || loss_type == "huber" || loss_type == "cauchy",
+                   "one of trivial, huber, cauchy");
+  CHECK_OPTION_GT(loss_scale, 0.0);
+  CHECK_OPTION_GE(max_num_iterations, 0);
+  CHECK_OPTION_GE(function_tolerance, 0.0);
+  CHECK_OPTION_GE(gradient_tolerance, 0.0);
+  CHECK_OPTION_GE(parameter_tolerance, 0.0);
+  CHECK_OPTION_GE(max_tracks_per_image, 0);
+  CHECK_OPTION_GE(dense_schur_max_frames, 0);
+  CHECK_OPTION_MSG(solver, solver == "auto" || solver == "ceres" || solver == "schur",
+                   "one of auto, ceres, schur");
+  CHECK_OPTION_MSG(num_threads, num_threads == -1 || num_threads >= 1, "-1 or >= 1");
+  return true;
 }
 
 BundleAdjustmentStats RunBundleAdjustment(
     const BundleAdjustmentOptions& options, MapperState* state) {
   THROW_CHECK(state != nullptr);
-  THROW_CHECK_MSG(options.Check(), "invalid BundleAdjustmentOptions");
+  THROW_CHECK_OPTIONS(options);
   const auto start = std::chrono::steady_clock::now();
   BundleAdjustmentStats stats;
 

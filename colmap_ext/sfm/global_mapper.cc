@@ -6,6 +6,7 @@
 
 #include "core/errors.h"
 #include "core/logging.h"
+#include "core/option_check.h"
 #include "core/rig.h"
 
 namespace lisfm {
@@ -93,22 +94,77 @@ size_t DropWeakFrames(int min_observations, MapperState* state) {
   return dropped;
 }
 
-nlohmann::json ModelCounts(const MapperState& state) {
-  return {{"registered_frames", state.NumRegisteredFrames()},
-          {"registered_images", state.NumRegisteredImages()},
-          {"points", CountTriangulated(state)},
-          {"observations", CountObservations(state)},
-          {"mean_reprojection_error_px", MeanTrackError(state)}};
+MapperModelCounts ModelCounts(const MapperState& state) {
+  MapperModelCounts counts;
+  counts.registered_frames = state.NumRegisteredFrames();
+  counts.registered_images = state.NumRegisteredImages();
+  counts.points = CountTriangulated(state);
+  counts.observations = CountObservations(state);
+  counts.mean_reprojection_error_px = MeanTrackError(state);
+  return counts;
+}
+
+// skip_rotation_averaging: the frames of `frame_ids` with a rotation prior
+// take it (registered), the others are unregistered. Fills the counts of
+// `stats` that apply.
+void RotationsFromPriors(const std::vector<frame_t>& frame_ids,
+                         MapperState* state,
+                         RotationAveragingStats* stats) {
+  stats->num_input_frames = frame_ids.size();
+  for (const frame_t id : frame_ids) {
+    SfmFrame& frame = state->frames.at(id);
+    frame.registered = frame.has_prior_rotation;
+    if (!frame.has_prior_rotation) continue;
+    frame.rig_from_world =
+        SE3(frame.prior_rig_from_world_rotation, frame.rig_from_world.translation());
+    ++stats->num_prior_frames;
+    ++stats->num_registered_frames;
+  }
+  stats->initialization = "priors";
+}
+
+// skip_translation_averaging: each registered frame of `frame_ids` with a
+// position prior takes it (rig origin c in world: rig_from_world translation
+// t = -R c); the others are unregistered.
+void PositionsFromPriors(const std::vector<frame_t>& frame_ids, MapperState* state) {
+  for (const frame_t id : frame_ids) {
+    SfmFrame& frame = state->frames.at(id);
+    if (!frame.registered) continue;
+    if (!frame.has_prior_position) {
+      frame.registered = false;
+      continue;
+    }
+    const Quat& rotation = frame.rig_from_world.rotation();
+    frame.rig_from_world = SE3(rotation, -(rotation * frame.prior_position));
+  }
 }
 
 }  // namespace
+
+bool GlobalMapperOptions::Check() const {
+  CHECK_OPTION_NESTED(load);
+  CHECK_OPTION_NESTED(view_graph);
+  CHECK_OPTION_NESTED(rotation_averaging);
+  CHECK_OPTION_NESTED(translation_averaging);
+  CHECK_OPTION_NESTED(tracks);
+  CHECK_OPTION_NESTED(triangulation);
+  CHECK_OPTION_NESTED(bundle_adjustment);
+  CHECK_OPTION_GE(num_refinement_rounds, 0);
+  CHECK_OPTION_GE(refinement_function_tolerance, 0.0);
+  CHECK_OPTION_GE(final_max_num_iterations, 0);
+  CHECK_OPTION_GE(min_component_frames, 1);
+  CHECK_OPTION_GE(min_frame_observations, 0);
+  CHECK_OPTION_GE(lidar_constraint_tolerance_ms, 0.0);
+  return true;
+}
 
 GlobalMapperResult RunGlobalMapper(const Database& database, const Rig* rig,
                                    const std::vector<LidarConstraintRecord>& lidar_constraints,
                                    const std::string& image_path,
                                    const GlobalMapperOptions& options) {
+  THROW_CHECK_OPTIONS(options);
   GlobalMapperResult result;
-  nlohmann::json& summary = result.summary;
+  GlobalMapperSummary& summary = result.summary;
   const auto start = Clock::now();
 
   // ---- load ----
@@ -116,12 +172,12 @@ GlobalMapperResult RunGlobalMapper(const Database& database, const Rig* rig,
   MapperState base = LoadMapperState(database, rig, options.load);
   size_t num_keypoints = 0;
   for (const auto& [id, image] : base.images) num_keypoints += image.keypoints.size();
-  summary["load"] = {{"cameras", base.cameras.size()},
-                     {"images", base.images.size()},
-                     {"frames", base.frames.size()},
-                     {"keypoints", num_keypoints},
-                     {"rig", rig != nullptr},
-                     {"seconds", SecondsSince(t0)}};
+  summary.num_cameras = base.cameras.size();
+  summary.num_images = base.images.size();
+  summary.num_frames = base.frames.size();
+  summary.num_keypoints = num_keypoints;
+  summary.has_rig = rig != nullptr;
+  summary.load_seconds = SecondsSince(t0);
   LogInfo("global_mapper: {} cameras, {} images in {} frames, {} keypoints", base.cameras.size(),
           base.images.size(), base.frames.size(), num_keypoints);
 
@@ -129,37 +185,27 @@ GlobalMapperResult RunGlobalMapper(const Database& database, const Rig* rig,
     const size_t attached = AttachLidarConstraints(
         lidar_constraints,
         static_cast<int64_t>(options.lidar_constraint_tolerance_ms * 1e6), &base);
-    summary["lidar_constraints"] = {{"read", lidar_constraints.size()}, {"attached", attached}};
+    summary.has_lidar_constraints = true;
+    summary.num_lidar_constraints_read = lidar_constraints.size();
+    summary.num_lidar_constraints_attached = attached;
     LogInfo("global_mapper: {} of {} LiDAR constraints attached to frames", attached,
             lidar_constraints.size());
   }
 
   // ---- view graph ----
   t0 = Clock::now();
-  const ViewGraphStats vg = BuildViewGraph(database, options.view_graph, &base);
-  summary["view_graph"] = {{"pairs_in_database", vg.num_pairs_in_database},
-                           {"edges", vg.num_edges},
-                           {"intra_frame_edges", vg.num_intra_frame_edges},
-                           {"skipped_config", vg.num_skipped_config},
-                           {"rejected_few_inliers", vg.num_rejected_few_inliers},
-                           {"rejected_reestimation", vg.num_rejected_reestimation},
-                           {"inlier_matches", vg.num_inlier_matches},
-                           {"seconds", SecondsSince(t0)}};
-  LogInfo("global_mapper: view graph with {} edges from {} pairs ({:.2f} s)", vg.num_edges,
-          vg.num_pairs_in_database, SecondsSince(t0));
+  summary.view_graph = BuildViewGraph(database, options.view_graph, &base);
+  summary.view_graph_seconds = SecondsSince(t0);
+  LogInfo("global_mapper: view graph with {} edges from {} pairs ({:.2f} s)",
+          summary.view_graph.num_edges, summary.view_graph.num_pairs_in_database,
+          summary.view_graph_seconds);
 
   std::vector<std::vector<frame_t>> components = FrameComponents(base);
-  summary["components"] = nlohmann::json::array();
-  size_t num_small = 0;
-  for (const auto& c : components) {
-    if (static_cast<int>(c.size()) < options.min_component_frames) ++num_small;
-  }
-  summary["num_components"] = components.size() - num_small;
-  summary["num_frames_in_small_components"] = 0;
   for (const auto& c : components) {
     if (static_cast<int>(c.size()) < options.min_component_frames) {
-      summary["num_frames_in_small_components"] =
-          summary["num_frames_in_small_components"].get<size_t>() + c.size();
+      summary.num_frames_in_small_components += c.size();
+    } else {
+      ++summary.num_components;
     }
   }
   if (components.empty() ||
@@ -172,68 +218,51 @@ GlobalMapperResult RunGlobalMapper(const Database& database, const Rig* rig,
     const std::vector<frame_t>& frame_ids = components[c];
     if (static_cast<int>(frame_ids.size()) < options.min_component_frames) continue;
     if (!options.reconstruct_all_components && !result.models.empty()) break;
-    nlohmann::json comp;
-    comp["frames"] = frame_ids.size();
+    MapperComponentSummary& comp = summary.components.emplace_back();
+    comp.frames = frame_ids.size();
     MapperState state = base;  // the stages register only this component's frames
 
     t0 = Clock::now();
-    const RotationAveragingStats ra =
-        AverageRotations(options.rotation_averaging, frame_ids, &state);
-    comp["rotation_averaging"] = {{"registered_frames", ra.num_registered_frames},
-                                  {"edges", ra.num_edge_measurements},
-                                  {"lidar_constraints", ra.num_lidar_measurements},
-                                  {"prior_frames", ra.num_prior_frames},
-                                  {"rejected_edges", ra.num_rejected_edges},
-                                  {"iterations", ra.num_iterations},
-                                  {"initialization", ra.initialization},
-                                  {"mean_residual_deg", ra.mean_residual_deg},
-                                  {"seconds", SecondsSince(t0)}};
+    if (options.skip_rotation_averaging) {
+      comp.rotation_averaging_skipped = true;
+      RotationsFromPriors(frame_ids, &state, &comp.rotation_averaging);
+    } else {
+      comp.rotation_averaging = AverageRotations(options.rotation_averaging, frame_ids, &state);
+    }
+    comp.rotation_averaging_seconds = SecondsSince(t0);
 
     t0 = Clock::now();
     std::vector<frame_t> registered;
     for (const frame_t id : frame_ids) {
       if (state.frames.at(id).registered) registered.push_back(id);
     }
-    const TranslationAveragingStats ta =
-        AverageTranslations(options.translation_averaging, registered, &state);
-    comp["translation_averaging"] = {{"registered_frames", state.NumRegisteredFrames()},
-                                     {"edges", ta.num_edges_input},
-                                     {"rejected_1dsfm", ta.num_rejected_1dsfm},
-                                     {"rejected_residual", ta.num_rejected_residual},
-                                     {"prior_residuals", ta.num_prior_residuals},
-                                     {"lidar_residuals", ta.num_lidar_residuals},
-                                     {"metric", ta.metric},
-                                     {"gauge", ta.gauge},
-                                     {"seconds_1dsfm", ta.seconds_1dsfm},
-                                     {"seconds", SecondsSince(t0)}};
+    if (options.skip_translation_averaging) {
+      comp.translation_averaging_skipped = true;
+      PositionsFromPriors(registered, &state);
+    } else {
+      comp.translation_averaging =
+          AverageTranslations(options.translation_averaging, registered, &state);
+    }
+    comp.translation_averaging_registered_frames = state.NumRegisteredFrames();
+    comp.translation_averaging_seconds = SecondsSince(t0);
     if (static_cast<int>(state.NumRegisteredFrames()) < options.min_component_frames) {
       LogWarning("global_mapper: component {} lost its frames in averaging", c);
-      summary["components"].push_back(comp);
+      comp.lost_frames_in_averaging = true;
       continue;
     }
 
     t0 = Clock::now();
-    const TrackStats tracks = BuildTracks(options.tracks, &state);
-    const TriangulationStats tri = TriangulateTracks(options.triangulation, &state);
-    comp["tracks"] = {{"tracks", tracks.num_tracks},
-                      {"inconsistent", tracks.num_tracks_inconsistent},
-                      {"mean_track_length", tracks.mean_track_length},
-                      {"triangulated", tri.num_tracks_triangulated},
-                      {"failed_angle", tri.num_tracks_failed_angle},
-                      {"failed_reprojection", tri.num_tracks_failed_reprojection},
-                      {"failed_depth", tri.num_tracks_failed_depth},
-                      {"observations", tri.num_observations},
-                      {"mean_reprojection_error_px", tri.mean_reprojection_error_px},
-                      {"seconds", SecondsSince(t0)}};
+    comp.tracks = BuildTracks(options.tracks, &state);
+    comp.triangulation = TriangulateTracks(options.triangulation, &state);
+    comp.tracks_seconds = SecondsSince(t0);
 
-    nlohmann::json rounds = nlohmann::json::array();
     for (int round = 0; round <= options.num_refinement_rounds; ++round) {
-      const bool final_round = round == options.num_refinement_rounds;
-      nlohmann::json r;
+      MapperRoundSummary& r = comp.refinement.emplace_back();
+      r.final_round = round == options.num_refinement_rounds;
       t0 = Clock::now();
       BundleAdjustmentOptions ba_options = options.bundle_adjustment;
-      if (!final_round) ba_options.function_tolerance = options.refinement_function_tolerance;
-      if (final_round && options.final_full_bundle_adjustment &&
+      if (!r.final_round) ba_options.function_tolerance = options.refinement_function_tolerance;
+      if (r.final_round && options.final_full_bundle_adjustment &&
           ba_options.max_tracks_per_image > 0) {
         // From the converged subsampled solution a few iterations reach the
         // full optimum's accuracy; the long tail of tiny cost decreases is
@@ -243,53 +272,37 @@ GlobalMapperResult RunGlobalMapper(const Database& database, const Rig* rig,
         ba_options.max_num_iterations =
             std::min(ba_options.max_num_iterations, options.final_max_num_iterations);
       }
-      const BundleAdjustmentStats ba = RunBundleAdjustment(ba_options, &state);
-      r["bundle_adjustment"] = {{"residuals", ba.num_reprojection_residuals},
-                                {"prior_residuals",
-                                 ba.num_position_prior_residuals + ba.num_rotation_prior_residuals},
-                                {"lidar_residuals", ba.num_lidar_residuals},
-                                {"gauge", ba.gauge},
-                                {"iterations", ba.num_iterations},
-                                {"initial_error_px", ba.initial_mean_reprojection_error_px},
-                                {"final_error_px", ba.final_mean_reprojection_error_px},
-                                {"termination", ba.termination},
-                                {"usable", ba.usable},
-                                {"solver", ba.linear_solver},
-                                {"initial_cost", ba.initial_cost},
-                                {"final_cost", ba.final_cost},
-                                {"setup_seconds", ba.setup_seconds},
-                                {"ceres_seconds", ba.ceres_seconds},
-                                {"linear_solver_seconds", ba.linear_solver_seconds},
-                                {"evaluation_seconds", ba.evaluation_seconds},
-                                {"seconds", SecondsSince(t0)}};
+      r.bundle_adjustment_skipped = options.skip_bundle_adjustment;
+      if (!r.bundle_adjustment_skipped) {
+        r.bundle_adjustment = RunBundleAdjustment(ba_options, &state);
+      }
+      r.bundle_adjustment_seconds = SecondsSince(t0);
       t0 = Clock::now();
-      if (ba_options.max_tracks_per_image > 0) {
+      if (!r.bundle_adjustment_skipped && ba_options.max_tracks_per_image > 0) {
         // The points left out of the adjustment follow the new poses.
         TriangulateTracks(options.triangulation, &state);
       }
       const FilterStats filtered = FilterTracks(options.triangulation, &state);
-      r["filtered_observations"] = filtered.num_observations_rejected_depth +
-                                   filtered.num_observations_rejected_reprojection;
-      if (!final_round) {
-        r["retriangulated_observations"] = RetriangulateTracks(options.triangulation, &state);
+      r.filtered_observations = filtered.num_observations_rejected_depth +
+                                filtered.num_observations_rejected_reprojection;
+      r.retriangulation_skipped = !r.final_round && options.skip_retriangulation;
+      if (!r.final_round && !r.retriangulation_skipped) {
+        r.retriangulated_observations = RetriangulateTracks(options.triangulation, &state);
       }
-      r["filter_retriangulate_seconds"] = SecondsSince(t0);
-      r["model"] = ModelCounts(state);
-      rounds.push_back(r);
+      r.filter_retriangulate_seconds = SecondsSince(t0);
+      r.model = ModelCounts(state);
       LogInfo("global_mapper: component {} round {}: {} frames, {} points, {} observations, "
               "{:.3f} px",
-              c, round, state.NumRegisteredFrames(), CountTriangulated(state),
-              CountObservations(state), MeanTrackError(state));
+              c, round, r.model.registered_frames, r.model.points, r.model.observations,
+              r.model.mean_reprojection_error_px);
     }
-    comp["refinement"] = rounds;
-    comp["dropped_weak_frames"] = DropWeakFrames(options.min_frame_observations, &state);
-    comp["model"] = ModelCounts(state);
+    comp.dropped_weak_frames = DropWeakFrames(options.min_frame_observations, &state);
+    comp.model = ModelCounts(state);
 
     t0 = Clock::now();
     Reconstruction model =
         ToReconstruction(state, options.read_colors ? image_path : std::string());
-    comp["to_model_seconds"] = SecondsSince(t0);
-    summary["components"].push_back(comp);
+    comp.to_model_seconds = SecondsSince(t0);
     if (model.NumImages() >= static_cast<size_t>(std::max(2, options.min_component_frames))) {
       result.models.push_back(std::move(model));
     }
@@ -298,8 +311,8 @@ GlobalMapperResult RunGlobalMapper(const Database& database, const Rig* rig,
                    [](const Reconstruction& a, const Reconstruction& b) {
                      return a.NumImages() > b.NumImages();
                    });
-  summary["num_models"] = result.models.size();
-  summary["total_seconds"] = SecondsSince(start);
+  summary.num_models = result.models.size();
+  summary.total_seconds = SecondsSince(start);
   return result;
 }
 

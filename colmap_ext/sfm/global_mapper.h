@@ -10,6 +10,9 @@
 //       → final RunBundleAdjustment + FilterTracks
 //       → frames left with too few observations are dropped
 //   → one COLMAP Reconstruction per component (largest first).
+// GlobalMapperOptions::skip_<stage> leaves out rotation averaging, translation
+// averaging (the pose priors stand in), bundle adjustment or retriangulation;
+// the summary records each skipped stage.
 //
 // Gauge and scale: with pose priors or LiDAR constraints the result is metric
 // and in the priors' world frame (constraints alone fix the scale only);
@@ -24,13 +27,11 @@
 #include <string>
 #include <vector>
 
-#include <nlohmann/json.hpp>
-
-#include "colmap_ext/sfm/bundle_adjustment.h"
 #include "colmap_ext/io/database.h"
+#include "colmap_ext/io/reconstruction.h"
+#include "colmap_ext/sfm/bundle_adjustment.h"
 #include "colmap_ext/sfm/lidar_constraints.h"
 #include "colmap_ext/sfm/mapper_state.h"
-#include "colmap_ext/io/reconstruction.h"
 #include "colmap_ext/sfm/rotation_averaging.h"
 #include "colmap_ext/sfm/tracks.h"
 #include "colmap_ext/sfm/translation_averaging.h"
@@ -82,11 +83,89 @@ struct GlobalMapperOptions {
   double lidar_constraint_tolerance_ms = 1.0;
   // Read point colours from the images (needs --image_path).
   bool read_colors = true;
+  // Stages to leave out (COLMAP's skip_<stage>); all run by default.
+  // Rotation averaging: each frame of a component takes its prior rotation
+  // (SfmFrame::prior_rig_from_world_rotation); frames without one are not
+  // registered. Needs rotation priors in the database.
+  bool skip_rotation_averaging = false;
+  // Translation averaging: each registered frame takes its prior position;
+  // frames without one are unregistered. Needs position priors.
+  bool skip_translation_averaging = false;
+  // Every bundle adjustment (refinement rounds and final): the poses stay
+  // those of averaging (or the priors); tracks are still filtered.
+  bool skip_bundle_adjustment = false;
+  // The retriangulation at the end of each refinement round.
+  bool skip_retriangulation = false;
+  bool Check() const;
+};
+
+// Counts of the current model of a component.
+struct MapperModelCounts {
+  size_t registered_frames = 0;
+  size_t registered_images = 0;
+  size_t points = 0;        // triangulated tracks
+  size_t observations = 0;  // observations of triangulated tracks
+  double mean_reprojection_error_px = 0.0;
+};
+
+// One refinement round (or the final adjustment): bundle adjustment, then
+// filtering and, except in the final round, retriangulation.
+struct MapperRoundSummary {
+  bool bundle_adjustment_skipped = false;
+  BundleAdjustmentStats bundle_adjustment;  // default when skipped
+  double bundle_adjustment_seconds = 0.0;
+  size_t filtered_observations = 0;  // rejected for depth or reprojection error
+  bool final_round = false;          // no retriangulation in the final round
+  bool retriangulation_skipped = false;
+  size_t retriangulated_observations = 0;
+  double filter_retriangulate_seconds = 0.0;
+  MapperModelCounts model;  // after the round
+};
+
+struct MapperComponentSummary {
+  size_t frames = 0;  // frames of the view-graph component
+  bool rotation_averaging_skipped = false;
+  RotationAveragingStats rotation_averaging;  // when skipped: counts of the prior frames
+  double rotation_averaging_seconds = 0.0;
+  bool translation_averaging_skipped = false;
+  TranslationAveragingStats translation_averaging;  // default when skipped
+  size_t translation_averaging_registered_frames = 0;
+  double translation_averaging_seconds = 0.0;
+  // Fewer than min_component_frames frames were left after averaging: the
+  // component stops here (the fields below keep their defaults).
+  bool lost_frames_in_averaging = false;
+  TrackStats tracks;
+  TriangulationStats triangulation;
+  double tracks_seconds = 0.0;  // BuildTracks + TriangulateTracks
+  std::vector<MapperRoundSummary> refinement;  // the rounds, then the final adjustment
+  size_t dropped_weak_frames = 0;
+  MapperModelCounts model;  // the final model of the component
+  double to_model_seconds = 0.0;
+};
+
+// Counts and timings (s) of every stage of RunGlobalMapper.
+struct GlobalMapperSummary {
+  size_t num_cameras = 0;
+  size_t num_images = 0;
+  size_t num_frames = 0;
+  size_t num_keypoints = 0;
+  bool has_rig = false;
+  double load_seconds = 0.0;
+  bool has_lidar_constraints = false;  // constraints were given
+  size_t num_lidar_constraints_read = 0;
+  size_t num_lidar_constraints_attached = 0;
+  ViewGraphStats view_graph;
+  double view_graph_seconds = 0.0;
+  size_t num_components = 0;  // with at least min_component_frames frames
+  size_t num_frames_in_small_components = 0;
+  std::vector<MapperComponentSummary> components;  // reconstructed ones, in order
+  size_t num_models = 0;
+  double total_seconds = 0.0;
 };
 
 struct GlobalMapperResult {
   std::vector<Reconstruction> models;  // largest component first
-  nlohmann::json summary;              // counts and timings of every stage
+  GlobalMapperSummary summary;
 };
 
 // `rig` and `lidar_constraints` may be null / empty. `image_path` is only

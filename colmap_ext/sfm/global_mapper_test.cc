@@ -54,8 +54,19 @@ PoseErrors Evaluate(const Reconstruction& model, const SyntheticSfmScene& scene,
   return e;
 }
 
-TEST(GlobalMapper, RingWithOutliersRecoversCamerasUpToSimilarity) {
-  test::TempDir dir;
+// One line per component for failure messages.
+std::string Describe(const GlobalMapperSummary& summary) {
+  std::string s = std::to_string(summary.num_models) + " model(s);";
+  for (const MapperComponentSummary& c : summary.components) {
+    s += " component of " + std::to_string(c.frames) + " frames: " +
+         std::to_string(c.model.registered_frames) + " registered, " +
+         std::to_string(c.model.points) + " points;";
+  }
+  return s;
+}
+
+// 24 frames on a ring, 0.5 px noise, 10 % outlier matches and pairs.
+SyntheticSfmOptions RingSceneOptions() {
   SyntheticSfmOptions o;
   o.num_frames = 24;
   o.num_points = 1500;
@@ -63,11 +74,39 @@ TEST(GlobalMapper, RingWithOutliersRecoversCamerasUpToSimilarity) {
   o.outlier_match_ratio = 0.1;
   o.outlier_pair_ratio = 0.1;
   o.seed = 7;
-  const SyntheticSfmScene scene = WriteSyntheticSfmDatabase(o, dir.File("db.db"));
+  return o;
+}
+
+// A 5-camera rig in a room, with the pose priors and LiDAR constraints a LiDAR
+// stage gives: priors 2 cm / 0.5 deg, constraints 5 mm / 0.1 deg.
+SyntheticSfmOptions RigSceneOptions(const test::TempDir& dir) {
+  SyntheticSfmOptions o;
+  o.num_frames = 20;
+  o.num_rig_cameras = 5;
+  o.trajectory = SyntheticTrajectory::kRoom;
+  o.camera_model = "OPENCV_FISHEYE";
+  o.num_points = 3000;
+  o.pixel_noise = 0.5;
+  o.max_frame_gap = 3;
+  o.outlier_match_ratio = 0.05;
+  o.prior_position_noise = 0.02;
+  o.prior_rotation_noise = 0.5 * M_PI / 180.0;
+  o.num_lidar_neighbors = 2;
+  o.lidar_translation_noise = 0.005;
+  o.lidar_rotation_noise = 0.1 * M_PI / 180.0;
+  o.rig_path = dir.File("rig.yaml");
+  o.lidar_constraints_path = dir.File("constraints.txt");
+  o.seed = 11;
+  return o;
+}
+
+TEST(GlobalMapper, RingWithOutliersRecoversCamerasUpToSimilarity) {
+  test::TempDir dir;
+  const SyntheticSfmScene scene = WriteSyntheticSfmDatabase(RingSceneOptions(), dir.File("db.db"));
   const Database database(dir.File("db.db"), Database::OpenMode::kReadOnly);
   GlobalMapperOptions options;
   const GlobalMapperResult result = RunGlobalMapper(database, nullptr, {}, "", options);
-  ASSERT_EQ(result.models.size(), 1u) << result.summary.dump(2);
+  ASSERT_EQ(result.models.size(), 1u) << Describe(result.summary);
   const Reconstruction& model = result.models.front();
   model.Validate("global_mapper");
   EXPECT_EQ(model.NumImages(), scene.gt_cam_from_world.size());
@@ -84,29 +123,25 @@ TEST(GlobalMapper, RingWithOutliersRecoversCamerasUpToSimilarity) {
   EXPECT_GT(model.ComputeMeanReprojectionError(), 0.3);
   // Most true observations are kept: each point is seen by many images.
   EXPECT_GT(model.NumPoints3D(), 1000u);
+  // By default every stage runs: one refinement round (adjustment, filter,
+  // retriangulation), then the final adjustment.
+  ASSERT_EQ(result.summary.components.size(), 1u);
+  const MapperComponentSummary& c = result.summary.components.front();
+  EXPECT_FALSE(c.rotation_averaging_skipped);
+  EXPECT_FALSE(c.translation_averaging_skipped);
+  ASSERT_EQ(c.refinement.size(), 2u);
+  for (const MapperRoundSummary& r : c.refinement) {
+    EXPECT_FALSE(r.bundle_adjustment_skipped);
+    EXPECT_GT(r.bundle_adjustment.num_iterations, 0);
+    EXPECT_FALSE(r.retriangulation_skipped);
+  }
+  EXPECT_FALSE(c.refinement.front().final_round);
+  EXPECT_TRUE(c.refinement.back().final_round);
 }
 
 TEST(GlobalMapper, RigWithPriorsAndLidarConstraintsIsMetric) {
   test::TempDir dir;
-  SyntheticSfmOptions o;
-  o.num_frames = 20;
-  o.num_rig_cameras = 5;
-  o.trajectory = SyntheticTrajectory::kRoom;
-  o.camera_model = "OPENCV_FISHEYE";
-  o.num_points = 3000;
-  o.pixel_noise = 0.5;
-  o.max_frame_gap = 3;
-  o.outlier_match_ratio = 0.05;
-  // What a LiDAR stage gives: priors 2 cm / 0.5 deg, constraints
-  // 5 mm / 0.1 deg.
-  o.prior_position_noise = 0.02;
-  o.prior_rotation_noise = 0.5 * M_PI / 180.0;
-  o.num_lidar_neighbors = 2;
-  o.lidar_translation_noise = 0.005;
-  o.lidar_rotation_noise = 0.1 * M_PI / 180.0;
-  o.rig_path = dir.File("rig.yaml");
-  o.lidar_constraints_path = dir.File("constraints.txt");
-  o.seed = 11;
+  const SyntheticSfmOptions o = RigSceneOptions(dir);
   const SyntheticSfmScene scene = WriteSyntheticSfmDatabase(o, dir.File("db.db"));
   const Rig rig = ReadRigYaml(o.rig_path);
   const std::vector<LidarConstraintRecord> constraints =
@@ -116,7 +151,7 @@ TEST(GlobalMapper, RigWithPriorsAndLidarConstraintsIsMetric) {
   options.load.prior_position_sigma = 0.02;
   options.load.prior_rotation_sigma = 0.5 * M_PI / 180.0;
   const GlobalMapperResult result = RunGlobalMapper(database, &rig, constraints, "", options);
-  ASSERT_EQ(result.models.size(), 1u) << result.summary.dump(2);
+  ASSERT_EQ(result.models.size(), 1u) << Describe(result.summary);
   const Reconstruction& model = result.models.front();
   model.Validate("global_mapper");
   EXPECT_EQ(model.NumImages(), scene.gt_cam_from_world.size());
@@ -160,7 +195,7 @@ TEST(GlobalMapper, DisconnectedViewGraphGivesOneModelPerComponent) {
   }
   const Database database(dir.File("db.db"), Database::OpenMode::kReadOnly);
   const GlobalMapperResult result = RunGlobalMapper(database, nullptr, {}, "", {});
-  ASSERT_EQ(result.models.size(), 2u) << result.summary.dump(2);
+  ASSERT_EQ(result.models.size(), 2u) << Describe(result.summary);
   EXPECT_EQ(result.models[0].NumImages() + result.models[1].NumImages(), 16u);
   for (const Reconstruction& model : result.models) model.Validate("component");
 }
@@ -216,6 +251,112 @@ TEST(GlobalMapper, RigThatLacksACameraOfTheDatabaseIsAnInputError) {
     EXPECT_NE(std::string(e.what()).find("cam2"), std::string::npos) << e.what();
   }
 }
+
+// skip_bundle_adjustment: the poses are those of rotation and translation
+// averaging; the tracks are still triangulated and filtered.
+TEST(GlobalMapper, SkipBundleAdjustmentKeepsTheAveragedPoses) {
+  test::TempDir dir;
+  const SyntheticSfmScene scene = WriteSyntheticSfmDatabase(RingSceneOptions(), dir.File("db.db"));
+  const Database database(dir.File("db.db"), Database::OpenMode::kReadOnly);
+  GlobalMapperOptions options;
+  options.skip_bundle_adjustment = true;
+  const GlobalMapperResult result = RunGlobalMapper(database, nullptr, {}, "", options);
+  ASSERT_EQ(result.models.size(), 1u) << Describe(result.summary);
+  const MapperComponentSummary& c = result.summary.components.front();
+  ASSERT_EQ(c.refinement.size(), 2u);
+  for (const MapperRoundSummary& r : c.refinement) {
+    EXPECT_TRUE(r.bundle_adjustment_skipped);
+    EXPECT_EQ(r.bundle_adjustment.num_iterations, 0);
+    EXPECT_EQ(r.bundle_adjustment.num_reprojection_residuals, 0u);
+  }
+  const Reconstruction& model = result.models.front();
+  model.Validate("global_mapper");
+  EXPECT_EQ(model.NumImages(), scene.gt_cam_from_world.size());
+  const PoseErrors e = Evaluate(model, scene, /*estimate_scale=*/true);
+  // Rotation and translation averaging alone: 0.052 deg and 6.2 mm (max) on
+  // this scene, where the adjusted model stays below 0.05 deg and 5 mm
+  // (RingWithOutliersRecoversCamerasUpToSimilarity). The bounds (0.2 deg,
+  // 2 cm = 0.3 % of the 6 m ring radius) leave margin and still fail for a
+  // mis-registered camera (errors of degrees / decimetres).
+  EXPECT_LT(e.max_rotation_deg, 0.2);
+  EXPECT_LT(e.max_position, 0.02);
+  EXPECT_GT(model.NumPoints3D(), 1000u);
+}
+
+// skip_retriangulation: the refinement round re-adds no rejected observation;
+// the final adjustment still reaches the accuracy of the full pipeline.
+TEST(GlobalMapper, SkipRetriangulation) {
+  test::TempDir dir;
+  const SyntheticSfmScene scene = WriteSyntheticSfmDatabase(RingSceneOptions(), dir.File("db.db"));
+  const Database database(dir.File("db.db"), Database::OpenMode::kReadOnly);
+  GlobalMapperOptions options;
+  options.skip_retriangulation = true;
+  const GlobalMapperResult result = RunGlobalMapper(database, nullptr, {}, "", options);
+  ASSERT_EQ(result.models.size(), 1u) << Describe(result.summary);
+  const MapperComponentSummary& c = result.summary.components.front();
+  ASSERT_EQ(c.refinement.size(), 2u);
+  EXPECT_TRUE(c.refinement.front().retriangulation_skipped);
+  EXPECT_EQ(c.refinement.front().retriangulated_observations, 0u);
+  EXPECT_FALSE(c.refinement.front().bundle_adjustment_skipped);
+  const Reconstruction& model = result.models.front();
+  model.Validate("global_mapper");
+  EXPECT_EQ(model.NumImages(), scene.gt_cam_from_world.size());
+  const PoseErrors e = Evaluate(model, scene, /*estimate_scale=*/true);
+  // The same bounds as the full pipeline (RingWithOutliersRecoversCamerasUpToSimilarity).
+  EXPECT_LT(e.max_rotation_deg, 0.05);
+  EXPECT_LT(e.max_position, 0.005);
+  EXPECT_GT(model.NumPoints3D(), 1000u);
+}
+
+// skip_rotation_averaging + skip_translation_averaging: the pose priors stand
+// in for both averaging stages; bundle adjustment starts from them.
+TEST(GlobalMapper, SkipAveragingStartsFromThePriors) {
+  test::TempDir dir;
+  const SyntheticSfmOptions o = RigSceneOptions(dir);
+  const SyntheticSfmScene scene = WriteSyntheticSfmDatabase(o, dir.File("db.db"));
+  const Rig rig = ReadRigYaml(o.rig_path);
+  const std::vector<LidarConstraintRecord> constraints =
+      ReadLidarConstraints(o.lidar_constraints_path);
+  const Database database(dir.File("db.db"), Database::OpenMode::kReadOnly);
+  GlobalMapperOptions options;
+  options.load.prior_position_sigma = 0.02;
+  options.load.prior_rotation_sigma = 0.5 * M_PI / 180.0;
+  options.skip_rotation_averaging = true;
+  options.skip_translation_averaging = true;
+  const GlobalMapperResult result = RunGlobalMapper(database, &rig, constraints, "", options);
+  ASSERT_EQ(result.models.size(), 1u) << Describe(result.summary);
+  const MapperComponentSummary& c = result.summary.components.front();
+  EXPECT_TRUE(c.rotation_averaging_skipped);
+  EXPECT_EQ(c.rotation_averaging.num_prior_frames, static_cast<size_t>(o.num_frames));
+  EXPECT_EQ(c.rotation_averaging.num_iterations, 0);
+  EXPECT_TRUE(c.translation_averaging_skipped);
+  EXPECT_EQ(c.translation_averaging.num_edges_input, 0u);
+  EXPECT_EQ(c.translation_averaging_registered_frames, static_cast<size_t>(o.num_frames));
+  const Reconstruction& model = result.models.front();
+  model.Validate("global_mapper");
+  EXPECT_EQ(model.NumImages(), scene.gt_cam_from_world.size());
+  const PoseErrors se3 = Evaluate(model, scene, /*estimate_scale=*/false);
+  // From 2 cm / 0.5 deg priors the adjustment reaches the accuracy of the full
+  // pipeline (RigWithPriorsAndLidarConstraintsIsMetric): 0.05 deg, 5 mm.
+  EXPECT_LT(se3.max_rotation_deg, 0.05);
+  EXPECT_LT(se3.max_position, 0.005);
+}
+
+// Without rotation priors skip_rotation_averaging registers no frame: no
+// model, and the summary says why.
+TEST(GlobalMapper, SkipRotationAveragingWithoutPriorsGivesNoModel) {
+  test::TempDir dir;
+  WriteSyntheticSfmDatabase(RingSceneOptions(), dir.File("db.db"));
+  const Database database(dir.File("db.db"), Database::OpenMode::kReadOnly);
+  GlobalMapperOptions options;
+  options.skip_rotation_averaging = true;
+  const GlobalMapperResult result = RunGlobalMapper(database, nullptr, {}, "", options);
+  EXPECT_TRUE(result.models.empty());
+  ASSERT_EQ(result.summary.components.size(), 1u);
+  EXPECT_TRUE(result.summary.components.front().lost_frames_in_averaging);
+  EXPECT_EQ(result.summary.components.front().rotation_averaging.num_registered_frames, 0u);
+}
+
 
 }  // namespace
 }  // namespace colmap

@@ -9,6 +9,7 @@
 
 #include "core/errors.h"
 #include "core/logging.h"
+#include "core/option_check.h"
 #include "core/rig.h"
 
 namespace lisfm {
@@ -110,8 +111,15 @@ void CheckCamera(const Database& database, const Camera& camera) {
 
 }  // namespace
 
+bool LoadMapperStateOptions::Check() const {
+  CHECK_OPTION_GT(prior_position_sigma, 0.0);
+  CHECK_OPTION_GT(prior_rotation_sigma, 0.0);
+  return true;
+}
+
 MapperState LoadMapperState(const Database& database, const Rig* rig,
                             const LoadMapperStateOptions& options) {
+  THROW_CHECK_OPTIONS(options);
   MapperState state;
   state.has_rig = rig != nullptr;
   size_t num_without_prior_focal = 0;

@@ -134,6 +134,7 @@ struct LoadMapperStateOptions {
   double prior_position_sigma = 0.05;  // m
   double prior_rotation_sigma = 0.01;  // rad
   bool use_priors = true;
+  bool Check() const;
 };
 
 // Reads cameras, images, keypoints (normalised via the camera models) and

@@ -13,16 +13,22 @@
 
 #include "core/errors.h"
 #include "core/logging.h"
+#include "core/option_check.h"
 
 namespace lisfm {
 namespace colmap {
 
 bool RotationAveragingOptions::Check() const {
-  return max_rotation_error_deg > 0.0 && geman_mcclure_sigma_deg > 0.0 &&
-         max_l1_iterations >= 0 && max_irls_iterations >= 0 &&
-         convergence_tolerance_rad > 0.0 && l1_tolerance_rad > 0.0 &&
-         relative_rotation_sigma_deg > 0.0 && fallback_prior_sigma_rad > 0.0 &&
-         max_loop_error_deg > 0.0;
+  CHECK_OPTION_GT(max_rotation_error_deg, 0.0);
+  CHECK_OPTION_GT(geman_mcclure_sigma_deg, 0.0);
+  CHECK_OPTION_GT(max_loop_error_deg, 0.0);
+  CHECK_OPTION_GE(max_l1_iterations, 0);
+  CHECK_OPTION_GT(l1_tolerance_rad, 0.0);
+  CHECK_OPTION_GE(max_irls_iterations, 0);
+  CHECK_OPTION_GT(convergence_tolerance_rad, 0.0);
+  CHECK_OPTION_GT(relative_rotation_sigma_deg, 0.0);
+  CHECK_OPTION_GT(fallback_prior_sigma_rad, 0.0);
+  return true;
 }
 
 namespace {
@@ -351,7 +357,7 @@ RotationAveragingStats AverageRotations(const RotationAveragingOptions& options,
                                         const std::vector<frame_t>& frame_ids,
                                         MapperState* state) {
   THROW_CHECK(state != nullptr);
-  THROW_CHECK_MSG(options.Check(), "invalid RotationAveragingOptions");
+  THROW_CHECK_OPTIONS(options);
   const auto start = std::chrono::steady_clock::now();
   RotationAveragingStats stats;
   stats.num_input_frames = frame_ids.size();

@@ -15,6 +15,7 @@
 
 #include "colmap_ext/sfm/camera_model_functors.h"
 #include "core/errors.h"
+#include "core/option_check.h"
 
 namespace lisfm {
 namespace colmap {
@@ -645,10 +646,23 @@ class Solver {
 
 }  // namespace
 
+bool SchurBaOptions::Check() const {
+  CHECK_OPTION_MSG(loss_type,
+                   loss_type == "trivial" || loss_type == "huber" || loss_type == "cauchy",
+                   "one of trivial, huber, cauchy");
+  CHECK_OPTION_GT(loss_scale, 0.0);
+  CHECK_OPTION_GE(max_num_iterations, 0);
+  CHECK_OPTION_GE(function_tolerance, 0.0);
+  CHECK_OPTION_GE(gradient_tolerance, 0.0);
+  CHECK_OPTION_GE(parameter_tolerance, 0.0);
+  CHECK_OPTION_MSG(num_threads, num_threads == -1 || num_threads >= 1, "-1 or >= 1");
+  return true;
+}
+
 SchurBaSummary SolveSchurBundleAdjustment(const SchurBaOptions& options,
                                           SchurBaProblem* problem) {
   THROW_CHECK(problem != nullptr);
-  THROW_CHECK(options.loss_scale > 0.0 && options.max_num_iterations >= 0);
+  THROW_CHECK_OPTIONS(options);
   Solver solver(options, problem);
   return solver.Run();
 }

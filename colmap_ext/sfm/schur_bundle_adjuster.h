@@ -81,6 +81,7 @@ struct SchurBaOptions {
   double gradient_tolerance = 1e-10;
   double parameter_tolerance = 1e-8;
   int num_threads = -1;  // -1: all hardware threads
+  bool Check() const;
 };
 
 struct SchurBaSummary {

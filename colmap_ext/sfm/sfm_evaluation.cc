@@ -6,7 +6,6 @@
 #include <filesystem>
 #include <fstream>
 #include <limits>
-#include <nlohmann/json.hpp>
 #include <sstream>
 #include <unordered_map>
 
@@ -14,6 +13,7 @@
 #include "core/errors.h"
 #include "core/file_utils.h"
 #include "core/logging.h"
+#include "core/option_check.h"
 
 namespace lisfm {
 namespace colmap {
@@ -166,18 +166,6 @@ Quat GeodesicMedian(const std::vector<Quat>& rotations) {
     if (step.norm() < 1e-15) break;
   }
   return q;
-}
-
-using json = nlohmann::ordered_json;
-
-json Number(double v) { return std::isfinite(v) ? json(v) : json(nullptr); }
-
-json StatsToJson(const ErrorStats& s) {
-  return json{{"mean", Number(s.mean)},
-              {"median", Number(s.median)},
-              {"max", Number(s.max)},
-              {"rmse", Number(s.rmse)},
-              {"count", s.count}};
 }
 
 // Name lookup: full name first, basename otherwise (must be unique).
@@ -483,10 +471,11 @@ std::vector<NamedPose> ReadReferencePoses(const std::string& path,
 }
 
 bool SfmEvaluationOptions::Check() const {
-  if (auc_thresholds_deg.empty()) return false;
-  for (double t : auc_thresholds_deg) {
-    if (!(t > 0)) return false;
-  }
+  CHECK_OPTION_MSG(auc_thresholds_deg,
+                   !auc_thresholds_deg.empty() &&
+                       std::all_of(auc_thresholds_deg.begin(), auc_thresholds_deg.end(),
+                                   [](double t) { return t > 0 && std::isfinite(t); }),
+                   "a non-empty list of thresholds > 0");
   return true;
 }
 
@@ -649,43 +638,6 @@ SfmEvaluation EvaluatePoses(const std::vector<NamedPose>& estimate,
   ev.relative_translation_error_deg = ComputeErrorStats(relative_translation);
   ev.auc = PoseAuc(pair_errors, options.auc_thresholds_deg);
   return ev;
-}
-
-std::string SfmEvaluationToJson(const SfmEvaluation& ev,
-                                const std::vector<std::pair<std::string, std::string>>& extra) {
-  json j;
-  for (const auto& [key, value] : extra) j[key] = value;
-  j["num_reference_images"] = ev.num_reference_images;
-  j["num_estimated_images"] = ev.num_estimated_images;
-  j["num_registered"] = ev.num_registered;
-  j["num_unmatched_estimated"] = ev.num_unmatched_estimated;
-  j["alignment"] = ev.alignment;
-  const Quat& q = ev.reference_from_estimate.pose.rotation();
-  const Vec3& t = ev.reference_from_estimate.pose.translation();
-  j["reference_from_estimate"] = {{"scale", ev.reference_from_estimate.scale},
-                                  {"rotation_xyzw", {q.x(), q.y(), q.z(), q.w()}},
-                                  {"translation", {t.x(), t.y(), t.z()}}};
-  j["rotation_error_deg"] = StatsToJson(ev.rotation_error_deg);
-  j["position_error"] = StatsToJson(ev.position_error);
-  j["num_pairs"] = ev.num_pairs;
-  j["relative_rotation_error_deg"] = StatsToJson(ev.relative_rotation_error_deg);
-  j["relative_translation_error_deg"] = StatsToJson(ev.relative_translation_error_deg);
-  json auc = json::object();
-  for (size_t i = 0; i < ev.auc.size(); ++i) {
-    std::ostringstream key;
-    key << ev.auc_thresholds_deg[i];
-    auc[key.str()] = ev.auc[i];
-  }
-  j["auc"] = auc;
-  json images = json::array();
-  for (const ImageEvaluation& image : ev.images) {
-    images.push_back({{"name", image.name},
-                      {"registered", image.registered},
-                      {"rotation_error_deg", Number(image.rotation_error_deg)},
-                      {"position_error", Number(image.position_error)}});
-  }
-  j["images"] = images;
-  return j.dump(2) + "\n";
 }
 
 }  // namespace colmap

@@ -187,10 +187,5 @@ SfmEvaluation EvaluatePoses(const std::vector<NamedPose>& estimate,
                             const std::vector<NamedPose>& reference,
                             const SfmEvaluationOptions& options);
 
-// The evaluation as JSON text (NaN -> null), with `extra` key/value strings
-// (paths, formats) at the top.
-std::string SfmEvaluationToJson(const SfmEvaluation& evaluation,
-                                const std::vector<std::pair<std::string, std::string>>& extra);
-
 }  // namespace colmap
 }  // namespace lisfm

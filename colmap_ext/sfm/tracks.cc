@@ -10,6 +10,7 @@
 
 #include "core/errors.h"
 #include "core/logging.h"
+#include "core/option_check.h"
 
 namespace lisfm {
 namespace colmap {
@@ -46,15 +47,15 @@ class UnionFind {
 }  // namespace
 
 bool TrackOptions::Check() const {
-  return min_track_length >= 2 && max_track_length >= 0 &&
-         (max_track_length == 0 || max_track_length >= min_track_length);
+  CHECK_OPTION_GE(min_track_length, 2);
+  CHECK_OPTION_MSG(max_track_length, max_track_length == 0 || max_track_length >= min_track_length,
+                   "0 or >= min_track_length (" + std::to_string(min_track_length) + ")");
+  return true;
 }
 
 TrackStats BuildTracks(const TrackOptions& options, MapperState* state) {
   THROW_CHECK(state != nullptr);
-  THROW_CHECK_MSG(options.Check(), "invalid TrackOptions: min_track_length "
-                                       << options.min_track_length << ", max_track_length "
-                                       << options.max_track_length);
+  THROW_CHECK_OPTIONS(options);
   const auto start = std::chrono::steady_clock::now();
   TrackStats stats;
 

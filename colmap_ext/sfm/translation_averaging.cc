@@ -18,6 +18,7 @@
 
 #include "core/errors.h"
 #include "core/logging.h"
+#include "core/option_check.h"
 
 namespace lisfm {
 namespace colmap {
@@ -31,32 +32,6 @@ constexpr double kWeightQuantum = 1e6;
 
 double SecondsSince(std::chrono::steady_clock::time_point start) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-}
-
-// First invalid field of the options ("" when all are valid).
-std::string FirstInvalidField(const TranslationAveragingOptions& o, std::string* expected) {
-  auto bad = [&](const char* name, const char* what) {
-    *expected = what;
-    return std::string(name);
-  };
-  if (o.num_projections < 1) return bad("num_projections", ">= 1");
-  if (!(o.min_projection_magnitude >= 0.0 && o.min_projection_magnitude < 1.0))
-    return bad("min_projection_magnitude", "a value in [0, 1)");
-  if (!(o.max_broken_ratio >= 0.0 && o.max_broken_ratio <= 1.0))
-    return bad("max_broken_ratio", "a value in [0, 1]");
-  if (!(o.axis_perturbation_sigma >= 0.0)) return bad("axis_perturbation_sigma", ">= 0");
-  if (!(o.direction_sigma > 0.0)) return bad("direction_sigma", "> 0");
-  if (o.direction_loss != "huber" && o.direction_loss != "cauchy" && o.direction_loss != "none")
-    return bad("direction_loss", "huber, cauchy or none");
-  if (!(o.direction_loss_threshold > 0.0)) return bad("direction_loss_threshold", "> 0");
-  if (!(o.min_edge_scale > 0.0)) return bad("min_edge_scale", "> 0");
-  if (!(o.min_rig_baseline >= 0.0)) return bad("min_rig_baseline", ">= 0");
-  if (!(o.random_init_extent > 0.0)) return bad("random_init_extent", "> 0");
-  if (!std::isfinite(o.max_residual_angle_deg))
-    return bad("max_residual_angle_deg", "a finite value");
-  if (o.max_num_iterations < 1) return bad("max_num_iterations", ">= 1");
-  if (!(o.function_tolerance >= 0.0)) return bad("function_tolerance", ">= 0");
-  return "";
 }
 
 // Camera centre in rig coordinates: p = -R^T t for cam_from_rig = [R | t].
@@ -337,8 +312,25 @@ bool LinearInitialPositions(const std::vector<DirectionEdge>& edges,
 }  // namespace
 
 bool TranslationAveragingOptions::Check() const {
-  std::string expected;
-  return FirstInvalidField(*this, &expected).empty();
+  CHECK_OPTION_GE(num_projections, 1);
+  CHECK_OPTION_MSG(min_projection_magnitude,
+                   min_projection_magnitude >= 0.0 && min_projection_magnitude < 1.0, "in [0, 1)");
+  CHECK_OPTION_MSG(max_broken_ratio, max_broken_ratio >= 0.0 && max_broken_ratio <= 1.0,
+                   "in [0, 1]");
+  CHECK_OPTION_GE(axis_perturbation_sigma, 0.0);
+  CHECK_OPTION_GT(direction_sigma, 0.0);
+  CHECK_OPTION_MSG(direction_loss,
+                   direction_loss == "huber" || direction_loss == "cauchy" ||
+                       direction_loss == "none",
+                   "one of huber, cauchy, none");
+  CHECK_OPTION_GT(direction_loss_threshold, 0.0);
+  CHECK_OPTION_GT(min_edge_scale, 0.0);
+  CHECK_OPTION_GE(min_rig_baseline, 0.0);
+  CHECK_OPTION_GT(random_init_extent, 0.0);
+  CHECK_OPTION_MSG(max_residual_angle_deg, true, "finite");
+  CHECK_OPTION_GE(max_num_iterations, 1);
+  CHECK_OPTION_GE(function_tolerance, 0.0);
+  return true;
 }
 
 ceres::CostFunction* WhitenedPositionCost::CreatePrior(const Vec3& prior, const Mat3& covariance) {
@@ -460,13 +452,10 @@ TranslationAveragingStats AverageTranslations(const TranslationAveragingOptions&
                                               const std::vector<frame_t>& frame_ids,
                                               MapperState* state) {
   THROW_CHECK(state != nullptr);
-  {
-    std::string expected;
-    const std::string field = FirstInvalidField(options, &expected);
-    if (!field.empty()) {
-      throw InputError("translation averaging options", "field TranslationAveraging." + field,
-                       "expected " + expected);
-    }
+  if (!options.Check()) {
+    const OptionCheckFailure& f = LastOptionCheckFailure();
+    throw InputError("translation averaging options", "field TranslationAveraging." + f.name,
+                     "expected " + f.requirement + ", found " + f.value);
   }
   const auto start = std::chrono::steady_clock::now();
   TranslationAveragingStats stats;

@@ -15,6 +15,7 @@
 #include "colmap_ext/sfm/camera_model_functors.h"
 #include "core/errors.h"
 #include "core/logging.h"
+#include "core/option_check.h"
 
 namespace lisfm {
 namespace colmap {
@@ -418,14 +419,19 @@ double SecondsSince(std::chrono::steady_clock::time_point start) {
 }  // namespace
 
 bool TriangulationOptions::Check() const {
-  return max_reprojection_error_px > 0.0 && min_triangulation_angle_deg >= 0.0 &&
-         min_triangulation_angle_deg < 180.0 && num_refinement_iterations >= 0 &&
-         max_hypothesis_pairs >= 1 && (num_threads == -1 || num_threads >= 1);
+  CHECK_OPTION_GT(max_reprojection_error_px, 0.0);
+  CHECK_OPTION_MSG(min_triangulation_angle_deg,
+                   min_triangulation_angle_deg >= 0.0 && min_triangulation_angle_deg < 180.0,
+                   "in [0, 180)");
+  CHECK_OPTION_GE(num_refinement_iterations, 0);
+  CHECK_OPTION_GE(max_hypothesis_pairs, 1);
+  CHECK_OPTION_MSG(num_threads, num_threads == -1 || num_threads >= 1, "-1 or >= 1");
+  return true;
 }
 
 TriangulationStats TriangulateTracks(const TriangulationOptions& options, MapperState* state) {
   THROW_CHECK(state != nullptr);
-  THROW_CHECK_MSG(options.Check(), "invalid TriangulationOptions");
+  THROW_CHECK_OPTIONS(options);
   const auto start = std::chrono::steady_clock::now();
   const GeometryMap geometry = RegisteredGeometry(*state);
   std::vector<TrackCounts> counts(state->tracks.size());
@@ -495,7 +501,7 @@ TriangulationStats TriangulateTracks(const TriangulationOptions& options, Mapper
 
 FilterStats FilterTracks(const TriangulationOptions& options, MapperState* state) {
   THROW_CHECK(state != nullptr);
-  THROW_CHECK_MSG(options.Check(), "invalid TriangulationOptions");
+  THROW_CHECK_OPTIONS(options);
   const auto start = std::chrono::steady_clock::now();
   const GeometryMap geometry = RegisteredGeometry(*state);
   const double min_angle = options.min_triangulation_angle_deg * kPi / 180.0;
@@ -575,7 +581,7 @@ FilterStats FilterTracks(const TriangulationOptions& options, MapperState* state
 
 size_t RetriangulateTracks(const TriangulationOptions& options, MapperState* state) {
   THROW_CHECK(state != nullptr);
-  THROW_CHECK_MSG(options.Check(), "invalid TriangulationOptions");
+  THROW_CHECK_OPTIONS(options);
   const auto start = std::chrono::steady_clock::now();
   const GeometryMap geometry = RegisteredGeometry(*state);
   std::vector<TrackCounts> counts(state->tracks.size());

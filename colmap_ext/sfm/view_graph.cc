@@ -16,16 +16,23 @@
 
 #include "core/errors.h"
 #include "core/logging.h"
+#include "core/option_check.h"
 
 namespace lisfm {
 namespace colmap {
 
 bool ViewGraphOptions::Check() const {
-  return min_num_inliers >= 5 && min_inlier_ratio >= 0.0 &&
-         min_inlier_ratio <= 1.0 && max_error_px > 0.0 &&
-         ransac_confidence > 0.0 && ransac_confidence < 1.0 &&
-         ransac_max_iterations > 0 && ransac_max_num_matches >= 5 &&
-         refine_max_num_matches >= 5 && (num_threads == -1 || num_threads > 0);
+  CHECK_OPTION_GE(min_num_inliers, 5);
+  CHECK_OPTION_MSG(min_inlier_ratio, min_inlier_ratio >= 0.0 && min_inlier_ratio <= 1.0,
+                   "in [0, 1]");
+  CHECK_OPTION_GT(max_error_px, 0.0);
+  CHECK_OPTION_MSG(num_threads, num_threads == -1 || num_threads >= 1, "-1 or >= 1");
+  CHECK_OPTION_MSG(ransac_confidence, ransac_confidence > 0.0 && ransac_confidence < 1.0,
+                   "in (0, 1)");
+  CHECK_OPTION_GE(ransac_max_iterations, 1);
+  CHECK_OPTION_GE(ransac_max_num_matches, 5);
+  CHECK_OPTION_GE(refine_max_num_matches, 5);
+  return true;
 }
 
 namespace {
@@ -353,7 +360,7 @@ ViewGraphStats BuildViewGraph(const Database& database,
                               const ViewGraphOptions& options,
                               MapperState* state) {
   THROW_CHECK(state != nullptr);
-  THROW_CHECK_MSG(options.Check(), "invalid ViewGraphOptions");
+  THROW_CHECK_OPTIONS(options);
   const auto start = std::chrono::steady_clock::now();
   ViewGraphStats stats;
 

@@ -14,6 +14,7 @@
 
 #include "core/errors.h"
 #include "core/io/rig_io.h"
+#include "core/option_check.h"
 
 namespace lisfm {
 namespace colmap {
@@ -186,7 +187,7 @@ bool SyntheticSfmOptions::Check() const {
 
 SyntheticSfmScene WriteSyntheticSfmDatabase(const SyntheticSfmOptions& options,
                                             const std::string& database_path) {
-  THROW_CHECK_MSG(options.Check(), "invalid SyntheticSfmOptions");
+  THROW_CHECK_OPTIONS(options);
   std::mt19937 rng(options.seed);
   SyntheticSfmScene scene;
   const bool with_rig = options.num_rig_cameras > 0;

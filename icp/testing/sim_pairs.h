@@ -20,6 +20,7 @@
 #include <vector>
 
 #include "core/geometry.h"
+#include "core/option_check.h"
 #include "icp/nearest_neighbors.h"
 #include "sim/lidar_simulator.h"
 #include "sim/scene.h"
@@ -36,6 +37,16 @@ struct SimScanPairOptions {
   double max_relative_yaw_deg = 15;  // |yaw_source - yaw_target| bound (deg)
   double init_sigma_rotation_deg = 2.0;   // initial-guess error, per axis (deg)
   double init_sigma_translation_m = 0.1;  // initial-guess error, per axis (m)
+  bool Check() const {
+    CHECK_OPTION_GE(azimuth_steps, 1);
+    CHECK_OPTION_GE(range_sigma_m, 0.0);
+    CHECK_OPTION_GE(min_baseline_m, 0.0);
+    CHECK_OPTION_GE(max_baseline_m, min_baseline_m);
+    CHECK_OPTION_GE(max_relative_yaw_deg, 0.0);
+    CHECK_OPTION_GE(init_sigma_rotation_deg, 0.0);
+    CHECK_OPTION_GE(init_sigma_translation_m, 0.0);
+    return true;
+  }
 };
 
 struct SimScanPair {
@@ -90,6 +101,7 @@ inline std::vector<SimScanPair> SimulateScanPairs(const sim::Scene& scene,
                                                   const sim::WalkingRoute& walking_route,
                                                   int count, uint32_t seed,
                                                   const SimScanPairOptions& options) {
+  THROW_CHECK_OPTIONS(options);
   std::vector<Vec3> route = walking_route.waypoints;
   if (walking_route.closed && !route.empty()) route.push_back(route.front());
   const double length = RouteLength(route);
@@ -307,6 +319,7 @@ inline std::unique_ptr<sim::Scene> CorridorScene(double length, double width, do
 inline std::vector<SimScanPair> SimulateCorridorPairs(const sim::Scene& corridor, int count,
                                                       uint32_t seed,
                                                       const SimScanPairOptions& options) {
+  THROW_CHECK_OPTIONS(options);
   std::mt19937_64 rng(seed);
   std::uniform_real_distribution<double> unit(0.0, 1.0);
   std::normal_distribution<double> gauss(0.0, 1.0);

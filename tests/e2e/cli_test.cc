@@ -27,11 +27,12 @@ TEST(Cli, UnknownCommandSuggestsAndExits2) {
 TEST(Cli, CommandHelpAndBadOptions) {
   std::string out;
   EXPECT_EQ(RunCommand(LisfmBinary() + " evaluate -h", &out), 0);
-  EXPECT_NE(out.find("--reference"), std::string::npos) << out;
+  EXPECT_NE(out.find("--reference_path"), std::string::npos) << out;
+  // A typo of a former name (alias) suggests the current name.
   EXPECT_EQ(RunCommand(LisfmBinary() + " evaluate --refrence x", &out), 2);
-  EXPECT_NE(out.find("did you mean '--reference'"), std::string::npos) << out;
+  EXPECT_NE(out.find("did you mean '--reference_path'"), std::string::npos) << out;
   EXPECT_EQ(RunCommand(LisfmBinary() + " evaluate", &out), 2);
-  EXPECT_NE(out.find("missing required option '--reference'"), std::string::npos) << out;
+  EXPECT_NE(out.find("missing required option '--reference_path'"), std::string::npos) << out;
 }
 
 }  // namespace

@@ -8,6 +8,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <nlohmann/json.hpp>
 #include <random>
 #include <string>
@@ -115,10 +116,22 @@ TEST(Evaluate, AteWithoutAlignmentMatchesTheNoise) {
   EXPECT_EQ(m["rpe"]["distance"].size(), 3u);
   EXPECT_TRUE(std::filesystem::exists(dir.File("out/evaluation.png")));
   EXPECT_TRUE(std::filesystem::exists(dir.File("out/evaluate_config.yaml")));
+  // The former names (--reference, --estimate, --align) are aliases; the
+  // effective config names the options by their current names.
+  std::ifstream config_file(dir.File("out/evaluate_config.yaml"));
+  const std::string config((std::istreambuf_iterator<char>(config_file)),
+                           std::istreambuf_iterator<char>());
+  EXPECT_NE(config.find("reference_path: " + dir.File("ref.txt")),
+            std::string::npos)
+      << config;
+  EXPECT_NE(config.find("estimate_path: " + dir.File("est.txt")),
+            std::string::npos)
+      << config;
+  EXPECT_NE(config.find("alignment: none"), std::string::npos) << config;
 
   // A 2 ms window misses the 3 ms offset: no overlap, exit 1 naming the files.
   const std::string miss =
-      Evaluate("--reference " + dir.File("ref.txt") + " --estimate " +
+      Evaluate("--reference_path " + dir.File("ref.txt") + " --estimate_path " +
                    dir.File("est.txt") + " --max_dt 0.002",
                &code);
   EXPECT_EQ(code, 1) << miss;
@@ -147,7 +160,7 @@ TEST(Evaluate, Se3AndSim3RecoverTheAppliedTransform) {
 
   int code = 0;
   std::string out =
-      Evaluate("--reference " + dir.File("ref.txt") + " --estimate " +
+      Evaluate("--reference_path " + dir.File("ref.txt") + " --estimate_path " +
                    dir.File("rigid.txt") + " --output_path " + dir.File("se3"),
                &code);
   ASSERT_EQ(code, 0) << out;
@@ -160,9 +173,9 @@ TEST(Evaluate, Se3AndSim3RecoverTheAppliedTransform) {
   for (int i = 0; i < 3; ++i)
     EXPECT_NEAR(t[i].get<double>(), expected_t[i], 1e-9);
 
-  out = Evaluate("--reference " + dir.File("ref.txt") + " --estimate " +
-                     dir.File("scaled.txt") + " --align sim3 --output_path " +
-                     dir.File("sim3"),
+  out = Evaluate("--reference_path " + dir.File("ref.txt") +
+                     " --estimate_path " + dir.File("scaled.txt") +
+                     " --alignment sim3 --output_path " + dir.File("sim3"),
                  &code);
   ASSERT_EQ(code, 0) << out;
   EXPECT_NE(out.find("scale 1.3"), std::string::npos) << out;
@@ -170,9 +183,9 @@ TEST(Evaluate, Se3AndSim3RecoverTheAppliedTransform) {
   EXPECT_NEAR(m["scale"].get<double>(), 1.3, 1e-9);
   EXPECT_LT(m["ate"]["translation_m"]["max"].get<double>(), 1e-9);
 
-  out = Evaluate("--reference " + dir.File("ref.txt") + " --estimate " +
-                     dir.File("scaled.txt") + " --align se3 --output_path " +
-                     dir.File("se3_scaled"),
+  out = Evaluate("--reference_path " + dir.File("ref.txt") +
+                     " --estimate_path " + dir.File("scaled.txt") +
+                     " --alignment se3 --output_path " + dir.File("se3_scaled"),
                  &code);
   ASSERT_EQ(code, 0) << out;
   m = ReadJson(dir.File("se3_scaled/metrics.json"));
@@ -191,7 +204,7 @@ TEST(Evaluate, HiltiControlPoints) {
   TempDir dir;
   int code = 0;
   const std::string out = Evaluate(
-      "--reference " + test::SharedData(points) + " --estimate " +
+      "--reference_path " + test::SharedData(points) + " --estimate_path " +
           test::SharedData(dense) +
           " --reference_type control_points --output_path " + dir.File("out"),
       &code);
@@ -216,12 +229,12 @@ TEST(Evaluate, BadInputExitsWithOneClearError) {
   TempDir dir;
   const std::vector<Pose> ref = Path(50);
   WriteTumFile(dir.File("ref.txt"), ref);
-  const std::string ref_arg = "--reference " + dir.File("ref.txt");
+  const std::string ref_arg = "--reference_path " + dir.File("ref.txt");
   int code = 0;
 
   // Missing file.
   std::string out =
-      Evaluate(ref_arg + " --estimate " + dir.File("nope.txt"), &code);
+      Evaluate(ref_arg + " --estimate_path " + dir.File("nope.txt"), &code);
   EXPECT_EQ(code, 1) << out;
   // Exactly one `error: ...` line (after the stage header on stderr).
   EXPECT_NE(out.find("\nerror: "), std::string::npos) << out;
@@ -233,7 +246,7 @@ TEST(Evaluate, BadInputExitsWithOneClearError) {
       dir.File("bad.txt"),
       "# t x y z qx qy qz qw\n1000 0 0 0 0 0 0 1\n1000.1 1 0 0 0 0 0 1\n"
       "1000.2 2 0 0 0 0 1\n");
-  out = Evaluate(ref_arg + " --estimate " + dir.File("bad.txt") +
+  out = Evaluate(ref_arg + " --estimate_path " + dir.File("bad.txt") +
                      " --output_path " + dir.File("out"),
                  &code);
   EXPECT_EQ(code, 1) << out;
@@ -246,7 +259,8 @@ TEST(Evaluate, BadInputExitsWithOneClearError) {
   test::WriteText(
       dir.File("unsorted.txt"),
       "1000 0 0 0 0 0 0 1\n1000.2 1 0 0 0 0 0 1\n1000.1 2 0 0 0 0 0 1\n");
-  out = Evaluate(ref_arg + " --estimate " + dir.File("unsorted.txt"), &code);
+  out =
+      Evaluate(ref_arg + " --estimate_path " + dir.File("unsorted.txt"), &code);
   EXPECT_EQ(code, 1) << out;
   EXPECT_NE(out.find(dir.File("unsorted.txt") + ":line 3"), std::string::npos)
       << out;
@@ -256,18 +270,20 @@ TEST(Evaluate, BadInputExitsWithOneClearError) {
   std::vector<Pose> later = ref;
   for (auto& x : later) x.t_ns += 3600LL * 1000000000LL;
   WriteTumFile(dir.File("later.txt"), later);
-  out = Evaluate(ref_arg + " --estimate " + dir.File("later.txt"), &code);
+  out = Evaluate(ref_arg + " --estimate_path " + dir.File("later.txt"), &code);
   EXPECT_EQ(code, 1) << out;
   EXPECT_NE(out.find(dir.File("later.txt")), std::string::npos) << out;
   EXPECT_NE(out.find("no estimate pose"), std::string::npos) << out;
 
   // Usage errors exit 2.
   out = Evaluate(
-      ref_arg + " --estimate " + dir.File("ref.txt") + " --align foo", &code);
+      ref_arg + " --estimate_path " + dir.File("ref.txt") + " --alignment foo",
+      &code);
   EXPECT_EQ(code, 2) << out;
   EXPECT_NE(out.find("--align"), std::string::npos) << out;
   out = Evaluate(
-      ref_arg + " --estimate " + dir.File("ref.txt") + " --max_dt -1", &code);
+      ref_arg + " --estimate_path " + dir.File("ref.txt") + " --max_dt -1",
+      &code);
   EXPECT_EQ(code, 2) << out;
   out = Evaluate(ref_arg, &code);
   EXPECT_EQ(code, 2) << out;

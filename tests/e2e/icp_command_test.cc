@@ -117,7 +117,8 @@ TEST(IcpCommand, RecoversAKnownTransformAndWritesOutputs) {
 }
 
 // --method bayesian takes its normal k from Bayesian.normal_neighbors: a bad value
-// there is a usage error (exit 2), while the same value for point_to_plane is unused.
+// there is a usage error (exit 2). Every given value is checked, also one the
+// chosen method does not use.
 TEST(IcpCommand, BayesianNormalNeighborsAreChecked) {
   TempDir dir;
   WriteAsciiPcd(dir.File("target.pcd"), Room());
@@ -127,13 +128,15 @@ TEST(IcpCommand, BayesianNormalNeighborsAreChecked) {
                            " --Bayesian.normal_neighbors 2 --method ";
   std::string output;
   EXPECT_EQ(RunCommand(base + "bayesian", &output), 2) << output;
-  EXPECT_NE(output.find("Bayesian.normal_neighbors"), std::string::npos) << output;
-  EXPECT_EQ(RunCommand(base + "point_to_plane", &output), 0) << output;
+  EXPECT_NE(output.find("Bayesian.normal_neighbors 2 is out of range: must be in [3, 64]"),
+            std::string::npos)
+      << output;
+  EXPECT_EQ(RunCommand(base + "point_to_plane", &output), 2) << output;
 }
 
 // The planarity gate, leverage power, refinement distance and view gates of
 // --method bayesian are range-checked (usage error, exit 2) and written to config.yaml with the value
-// used.
+// used, under their current names when given under a former one (alias).
 TEST(IcpCommand, BayesianGateAndLeveragePowerAreCheckedAndRecorded) {
   TempDir dir;
   WriteAsciiPcd(dir.File("target.pcd"), Room());
@@ -158,11 +161,12 @@ TEST(IcpCommand, BayesianGateAndLeveragePowerAreCheckedAndRecorded) {
       << output;
   const std::string config = ReadAll(out_dir + "/config.yaml");
   EXPECT_NE(config.find("Bayesian.min_planarity: 0.2"), std::string::npos) << config;
-  EXPECT_NE(config.find("Bayesian.leverage_power: 1"), std::string::npos) << config;
+  EXPECT_NE(config.find("Bayesian.jackknife_leverage_power: 1"), std::string::npos) << config;
   EXPECT_NE(config.find("Bayesian.field_of_view_gate: 0"), std::string::npos) << config;
-  EXPECT_NE(config.find("Bayesian.visibility_gate: 0.05"), std::string::npos) << config;
-  EXPECT_NE(config.find("Bayesian.refine_max_correspondence_distance: 0.2"), std::string::npos)
+  EXPECT_NE(config.find("Bayesian.visibility_gate_m: 0.05"), std::string::npos) << config;
+  EXPECT_NE(config.find("Bayesian.refine_max_correspondence_distance_m: 0.2"), std::string::npos)
       << config;
+  EXPECT_EQ(config.find("Bayesian.visibility_gate:"), std::string::npos) << config;
 }
 
 // A single plane is degenerate: exit 0 (a result, not an error) but a WARNING

@@ -1,0 +1,848 @@
+#include "apps/option_sections.h"
+
+#include <string>
+#include <utility>
+#include <vector>
+
+namespace lisfm {
+namespace {
+
+using R = OptionRange;
+
+const std::vector<std::string> kRobustKernels = {
+    "none", "huber", "cauchy", "geman_mcclure"};
+
+std::vector<std::pair<std::string, AlignmentType>> AlignmentChoices(
+    const std::vector<AlignmentType>& order) {
+  std::vector<std::pair<std::string, AlignmentType>> choices;
+  for (const AlignmentType a : order)
+    choices.emplace_back(AlignmentTypeName(a), a);
+  return choices;
+}
+
+}  // namespace
+
+void AddIcpOptions(OptionManager* options, IcpOptions* icp) {
+  options->AddInt("Icp.max_iterations",
+                  &icp->max_iterations,
+                  "associations (nearest-neighbour passes), each followed by "
+                  "Gauss-Newton solves",
+                  R::AtLeast(1));
+  options->AddInt("Icp.max_inner_iterations",
+                  &icp->max_inner_iterations,
+                  "extra Gauss-Newton solves on the same matches per "
+                  "association (0 = none)",
+                  R::AtLeast(0));
+  options->AddDouble("Icp.max_correspondence_distance_m",
+                     &icp->max_correspondence_distance_m,
+                     "reject matches farther than this (m)",
+                     R::GreaterThan(0));
+  options->AddAlias("Icp.max_correspondence_distance",
+                    "Icp.max_correspondence_distance_m");
+  options->AddDouble(
+      "Icp.max_normal_angle_deg",
+      &icp->max_normal_angle_deg,
+      "reject matches whose source and target normals differ more (deg; only "
+      "when the source has normals)",
+      R::GreaterThan(0).AndAtMost(180));
+  options->AddDouble("Icp.min_planarity",
+                     &icp->min_planarity,
+                     "ignore target points with lower planarity",
+                     R::Between(0, 1));
+  options->AddChoice(
+      "Icp.kernel", &icp->kernel, kRobustKernels, "robust kernel");
+  options->AddDouble("Icp.kernel_scale_m",
+                     &icp->kernel_scale_m,
+                     "robust kernel scale (m)",
+                     R::GreaterThan(0));
+  options->AddAlias("Icp.kernel_scale", "Icp.kernel_scale_m");
+  options->AddDouble("Icp.convergence_rotation_rad",
+                     &icp->convergence_rotation_rad,
+                     "step threshold (rad)",
+                     R::AtLeast(0));
+  options->AddAlias("Icp.convergence_rotation", "Icp.convergence_rotation_rad");
+  options->AddDouble("Icp.convergence_translation_m",
+                     &icp->convergence_translation_m,
+                     "step threshold (m)",
+                     R::AtLeast(0));
+  options->AddAlias("Icp.convergence_translation",
+                    "Icp.convergence_translation_m");
+  options->AddInt("Icp.min_inliers",
+                  &icp->min_inliers,
+                  "fewer matches end the registration as not converged",
+                  R::AtLeast(6));
+  options->AddInt("Icp.coarse_stride",
+                  &icp->coarse_stride,
+                  "the finest coarse level uses every k-th source point (1 = "
+                  "no coarse levels)",
+                  R::AtLeast(1));
+  options->AddInt(
+      "Icp.coarse_levels",
+      &icp->coarse_levels,
+      "coarse levels at most (every 2^(L-1) k-th, ..., k-th source point)",
+      R::Between(0, 8));
+  options->AddInt(
+      "Icp.coarse_min_points",
+      &icp->coarse_min_points,
+      "a coarse level is used only with at least this many source points",
+      R::AtLeast(1));
+  options->AddDouble("Icp.degeneracy_threshold",
+                     &icp->degeneracy_threshold,
+                     "min/max eigenvalue ratio of the scaled Hessian",
+                     R::AtLeast(0));
+  options->AddBool(
+      "Icp.field_of_view_gate",
+      &icp->field_of_view_gate,
+      "no match for source points outside the target scan's elevation band or "
+      "range (target in its sensor frame, spin axis z)");
+  options->AddDouble(
+      "Icp.visibility_gate_m",
+      &icp->visibility_gate_m,
+      "no match for source points hidden more than this (m, + 2 % of the "
+      "range) "
+      "behind the target scan's surface seen from its sensor (0 = off)",
+      R::AtLeast(0));
+  options->AddAlias("Icp.visibility_gate", "Icp.visibility_gate_m");
+  options->AddStructCheck([icp] { return icp->Check(); });
+}
+
+void AddNormalOptions(OptionManager* options, NormalOptions* normals) {
+  options->AddInt("Icp.num_neighbors",
+                  &normals->num_neighbors,
+                  "k of the PCA normals",
+                  R::Between(3, 64));
+  options->AddAlias("Icp.normal_neighbors", "Icp.num_neighbors");
+  options->AddDouble("Icp.max_radius_m",
+                     &normals->max_radius_m,
+                     "max neighbour distance for normals (m)",
+                     R::GreaterThan(0));
+  options->AddAlias("Icp.normal_radius", "Icp.max_radius_m");
+  options->AddStructCheck([normals] { return normals->Check(); });
+}
+
+void AddSgldOptions(OptionManager* options, SgldOptions* sgld) {
+  options->AddInt("Bayesian.num_iterations",
+                  &sgld->num_iterations,
+                  "SGLD iterations including burn-in",
+                  R::AtLeast(1));
+  options->AddAlias("Bayesian.iterations", "Bayesian.num_iterations");
+  options->AddInt("Bayesian.burn_in",
+                  &sgld->burn_in,
+                  "SGLD burn-in iterations",
+                  R::AtLeast(0));
+  options->RequireLess("Bayesian.burn_in", "Bayesian.num_iterations");
+  options->AddInt("Bayesian.thinning",
+                  &sgld->thinning,
+                  "keep every k-th sample",
+                  R::AtLeast(1));
+  options->AddInt("Bayesian.batch_size",
+                  &sgld->batch_size,
+                  "correspondences per mini-batch",
+                  R::AtLeast(1));
+  options->AddDouble("Bayesian.step_size",
+                     &sgld->step_size,
+                     "SGLD step in the preconditioned metric",
+                     R::GreaterThan(0).AndLessThan(2));
+  options->AddDouble("Bayesian.metric_decay",
+                     &sgld->metric_decay,
+                     "EMA decay of the preconditioner (RMSprop beta)",
+                     R::AtLeast(0).AndLessThan(1));
+  options->AddDouble("Bayesian.damping_sigma_rotation_rad",
+                     &sgld->damping_sigma_rotation_rad,
+                     "preconditioner damping scale (rad)",
+                     R::GreaterThan(0));
+  options->AddDouble("Bayesian.damping_sigma_translation_m",
+                     &sgld->damping_sigma_translation_m,
+                     "preconditioner damping scale (m)",
+                     R::GreaterThan(0));
+  options->AddUint64("Bayesian.seed", &sgld->seed, "random seed of the chain");
+  options->AddStructCheck([sgld] { return sgld->Check(); });
+}
+
+void AddBayesianIcpOptions(OptionManager* options, BayesianIcpOptions* bayes) {
+  IcpOptions* icp = &bayes->icp;
+  options->AddChoice("Bayesian.kernel",
+                     &icp->kernel,
+                     kRobustKernels,
+                     "robust kernel of --method bayesian (replaces Icp.kernel; "
+                     "calibrated with "
+                     "cauchy)");
+  options->AddDouble("Bayesian.kernel_scale_m",
+                     &icp->kernel_scale_m,
+                     "robust kernel scale of --method bayesian (m; replaces "
+                     "Icp.kernel_scale_m)",
+                     R::GreaterThan(0));
+  options->AddAlias("Bayesian.kernel_scale", "Bayesian.kernel_scale_m");
+  options->AddInt("Bayesian.normal_neighbors",
+                  &bayes->normal_neighbors,
+                  "k of the target normals of --method bayesian (replaces "
+                  "Icp.num_neighbors)",
+                  R::Between(3, 64));
+  options->AddDouble("Bayesian.min_planarity",
+                     &icp->min_planarity,
+                     "ignore target points with lower planarity in --method "
+                     "bayesian (replaces "
+                     "Icp.min_planarity; calibrated with 0.1)",
+                     R::Between(0, 1));
+  options->AddBool("Bayesian.field_of_view_gate",
+                   &icp->field_of_view_gate,
+                   "Icp.field_of_view_gate of --method bayesian (replaces it; "
+                   "calibrated with 1; "
+                   "set 0 for clouds not in their sensor frame)");
+  options->AddDouble(
+      "Bayesian.visibility_gate_m",
+      &icp->visibility_gate_m,
+      "Icp.visibility_gate_m of --method bayesian (m; replaces it; calibrated "
+      "with 0.1; set 0 for clouds not in their sensor frame)",
+      R::AtLeast(0));
+  options->AddAlias("Bayesian.visibility_gate", "Bayesian.visibility_gate_m");
+  AddSgldOptions(options, &bayes->sgld);
+  options->AddDouble("Bayesian.noise_sigma_m",
+                     &bayes->noise_sigma_m,
+                     "likelihood sigma (m), 0 = from the pair's residuals",
+                     R::AtLeast(0));
+  options->AddAlias("Bayesian.noise_sigma", "Bayesian.noise_sigma_m");
+  options->AddDouble(
+      "Bayesian.correlation_length_m",
+      &bayes->correlation_length_m,
+      "cell edge of the noise estimate (m) when num_correlation_cells = 0",
+      R::AtLeast(0));
+  options->AddInt("Bayesian.num_correlation_cells",
+                  &bayes->num_correlation_cells,
+                  "spatial cells of the per-pair (cluster sandwich) noise "
+                  "estimate (0 = cells of "
+                  "correlation_length_m)",
+                  R::AtLeast(2).Or(0));
+  options->AddDouble(
+      "Bayesian.jackknife_leverage_power",
+      &bayes->jackknife_leverage_power,
+      "leverage adjustment of the cluster sandwich: 0 = CR1, 1 = CR3 jackknife "
+      "(calibrated)",
+      R::AtLeast(0));
+  options->AddAlias("Bayesian.leverage_power",
+                    "Bayesian.jackknife_leverage_power");
+  options->AddDouble("Bayesian.refine_max_correspondence_distance_m",
+                     &bayes->refine_max_correspondence_distance_m,
+                     "after the ICP, refine it and associate the posterior "
+                     "within this distance "
+                     "(m; 0 = Icp.max_correspondence_distance_m)",
+                     R::AtLeast(0));
+  options->AddAlias("Bayesian.refine_max_correspondence_distance",
+                    "Bayesian.refine_max_correspondence_distance_m");
+  options->AddDouble("Bayesian.noise_sigma_scale",
+                     &bayes->noise_sigma_scale,
+                     "multiplies the per-pair likelihood sigma (fitted on "
+                     "simulated office-type "
+                     "pairs)",
+                     R::GreaterThan(0));
+  options->AddBool("Bayesian.plane_fit_variance",
+                   &bayes->plane_fit_variance,
+                   "per-correspondence variance from the target plane fit "
+                   "(normal uncertainty x "
+                   "offset)");
+  CorrespondenceVarianceOptions* variance = &bayes->correspondence_variance;
+  options->AddDouble(
+      "Bayesian.plane_variance_weight",
+      &variance->plane_variance_weight,
+      "plane_fit_variance: weight of the plane-fit scatter (2 = both clouds)",
+      R::AtLeast(0));
+  options->AddDouble(
+      "Bayesian.max_tilt_variance_rad2",
+      &variance->max_tilt_variance_rad2,
+      "plane_fit_variance: cap of a normal tilt variance (rad^2)",
+      R::AtLeast(0));
+  options->AddDouble("Bayesian.floor_m2",
+                     &variance->floor_m2,
+                     "plane_fit_variance: added to every variance (m^2)",
+                     R::GreaterThan(0));
+  options->AddBool("Bayesian.block_tempering",
+                   &bayes->block_tempering,
+                   "rescale the rotation / translation blocks of the posterior "
+                   "to the cluster "
+                   "jackknife");
+  options->AddDouble(
+      "Bayesian.prior_sigma_rotation_rad",
+      &bayes->prior_sigma_rotation_rad,
+      "Gaussian prior on the pose around --init_path, rotation sigma (rad; 0 = "
+      "flat)",
+      R::AtLeast(0));
+  options->AddAlias("Bayesian.prior_sigma_rotation",
+                    "Bayesian.prior_sigma_rotation_rad");
+  options->AddDouble("Bayesian.prior_sigma_translation_m",
+                     &bayes->prior_sigma_translation_m,
+                     "Gaussian prior on the pose around --init_path, "
+                     "translation sigma (m; 0 = "
+                     "flat)",
+                     R::AtLeast(0));
+  options->AddAlias("Bayesian.prior_sigma_translation",
+                    "Bayesian.prior_sigma_translation_m");
+  options->AddStructCheck([bayes] { return bayes->Check(); });
+}
+
+void AddLioOptions(OptionManager* options, LioOptions* lio) {
+  options->AddDouble("Lio.imu_noise_inflation",
+                     &lio->imu_noise_inflation,
+                     "factor on the rig's IMU noise densities",
+                     R::GreaterThan(0));
+  options->AddInt("Lio.point_stride",
+                  &lio->point_stride,
+                  "keep every n-th raw point before down-sampling (1 = all)",
+                  R::AtLeast(1));
+  options->AddDouble("Lio.scan_voxel_size",
+                     &lio->scan_voxel_size,
+                     "m, scan down-sampling voxel (0 = off)",
+                     R::AtLeast(0));
+  options->AddDouble("Lio.min_range",
+                     &lio->min_range,
+                     "m, closer points are dropped (blind zone)",
+                     R::AtLeast(0));
+  options->AddDouble("Lio.max_range",
+                     &lio->max_range,
+                     "m, farther points are dropped",
+                     R::GreaterThan(0));
+  options->RequireLess("Lio.min_range", "Lio.max_range");
+  options->AddInt("Lio.num_neighbours",
+                  &lio->num_neighbours,
+                  "k of the plane fit",
+                  R::AtLeast(3));
+  options->AddDouble("Lio.max_neighbour_distance",
+                     &lio->max_neighbour_distance,
+                     "m, farthest allowed plane neighbour",
+                     R::GreaterThan(0));
+  options->AddDouble("Lio.max_plane_residual",
+                     &lio->max_plane_residual,
+                     "m, max distance of a neighbour to its plane",
+                     R::GreaterThan(0));
+  options->AddDouble("Lio.max_point_residual",
+                     &lio->max_point_residual,
+                     "m, points farther from their plane are not used",
+                     R::GreaterThan(0));
+  options->AddDouble("Lio.point_noise_std",
+                     &lio->point_noise_std,
+                     "m, point-to-plane noise std",
+                     R::GreaterThan(0));
+  options->AddInt("Lio.max_iterations",
+                  &lio->max_iterations,
+                  "IEKF iterations per scan",
+                  R::AtLeast(1));
+  options->AddDouble(
+      "Lio.convergence_rotation",
+      &lio->convergence_rotation,
+      "rad, stop when the step is below this and convergence_translation",
+      R::GreaterThan(0));
+  options->AddDouble("Lio.convergence_translation",
+                     &lio->convergence_translation,
+                     "m",
+                     R::GreaterThan(0));
+  options->AddDouble("Lio.reassociate_translation",
+                     &lio->reassociate_translation,
+                     "m: after convergence, search neighbours again only if "
+                     "the pose moved more",
+                     R::AtLeast(0));
+  options->AddDouble("Lio.reassociate_rotation",
+                     &lio->reassociate_rotation,
+                     "rad: ... or rotated more than this since the last search",
+                     R::AtLeast(0));
+  options->AddDouble("Lio.degeneracy_threshold",
+                     &lio->degeneracy_threshold,
+                     "eigenvalue of the per-point information HᵀH/N below "
+                     "which a direction is "
+                     "weak",
+                     R::AtLeast(0));
+  options->AddDouble("Lio.keyframe_distance",
+                     &lio->keyframe_distance,
+                     "m between keyframes",
+                     R::GreaterThan(0));
+  options->AddDouble("Lio.keyframe_angle_deg",
+                     &lio->keyframe_angle_deg,
+                     "deg between keyframes",
+                     R::GreaterThan(0));
+  AddVoxelMapOptions(options, &lio->map);
+  AddImuInitializerOptions(options, &lio->init);
+  options->AddStructCheck([lio] { return lio->Check(); });
+}
+
+void AddVoxelMapOptions(OptionManager* options, VoxelMapOptions* map) {
+  options->AddDouble("Map.voxel_size",
+                     &map->voxel_size,
+                     "m, iVox hash voxel edge",
+                     R::GreaterThan(0));
+  options->AddDouble("Map.resolution",
+                     &map->resolution,
+                     "m, min spacing of map points",
+                     R::AtLeast(0));
+  options->RequireLess("Map.resolution", "Map.voxel_size");
+  options->AddInt("Map.max_points_per_voxel",
+                  &map->max_points_per_voxel,
+                  "points per voxel",
+                  R::AtLeast(1));
+  options->AddUint64("Map.max_voxels",
+                     &map->max_voxels,
+                     "voxels kept (least recently used dropped first)",
+                     R::AtLeast(1));
+  options->AddStructCheck([map] { return map->Check(); });
+}
+
+void AddImuInitializerOptions(OptionManager* options,
+                              ImuInitializerOptions* init) {
+  options->AddDouble("Init.min_duration_s",
+                     &init->min_duration_s,
+                     "s of stationary IMU data for the initialisation",
+                     R::GreaterThan(0));
+  options->AddInt("Init.min_samples",
+                  &init->min_samples,
+                  "IMU samples of the stationary window, at least",
+                  R::AtLeast(10));
+  options->AddDouble("Init.max_gyro_std",
+                     &init->max_gyro_std,
+                     "rad/s: above this the IMU is not static",
+                     R::GreaterThan(0));
+  options->AddDouble("Init.max_accel_std",
+                     &init->max_accel_std,
+                     "m/s^2: above this the IMU is not static",
+                     R::GreaterThan(0));
+  options->AddDouble("Init.gravity_magnitude",
+                     &init->gravity_magnitude,
+                     "m/s^2",
+                     R::GreaterThan(0));
+  options->AddStructCheck([init] { return init->Check(); });
+}
+
+void AddTrajectoryEvaluationOptions(OptionManager* options,
+                                    TrajectoryEvaluationOptions* eval) {
+  options->AddEnum(
+      "alignment",
+      &eval->alignment,
+      AlignmentChoices(
+          {AlignmentType::kSE3, AlignmentType::kSim3, AlignmentType::kNone}),
+      "alignment of the estimate to the reference");
+  options->AddAlias("align", "alignment");
+  options->AddStructCheck([eval] { return eval->Check(); });
+}
+
+void AddSfmEvaluationOptions(OptionManager* options,
+                             colmap::SfmEvaluationOptions* eval) {
+  options->AddEnum(
+      "alignment",
+      &eval->alignment,
+      AlignmentChoices(
+          {AlignmentType::kSim3, AlignmentType::kSE3, AlignmentType::kNone}),
+      "alignment of the estimated camera centres to the reference (se3 for "
+      "metric "
+      "models)");
+  options->AddStructCheck([eval] { return eval->Check(); });
+}
+
+void AddSimulatorOptions(OptionManager* options, sim::SimulatorOptions* sim) {
+  options->AddString(
+      "scene",
+      &sim->scene,
+      "office | staircase | hall, or a configs/sim_*.yaml scene file");
+  options->AddString(
+      "trajectory_path",
+      &sim->trajectory_path,
+      "TUM file of real motion (world_from_imu) to follow instead of walking");
+  options->AddDouble("duration",
+                     &sim->duration,
+                     "sequence length in s, > 0.5 (with --trajectory_path: at "
+                     "most the file's, "
+                     "<= 0 all)",
+                     R::AtMost(1e5));
+  options->AddDouble("camera_rate",
+                     &sim->camera_rate,
+                     "rig frames per second (0: none)",
+                     R::Between(0, 100));
+  options->AddString(
+      "lidars", &sim->lidars, "comma list: spinning, livox (or none)");
+  options->AddDouble(
+      "noise_scale",
+      &sim->noise_scale,
+      "multiplies all sensor noise and biases (0: exact measurements)",
+      R::Between(0, 100));
+  options->AddInt(
+      "seed", &sim->seed, "seed of scene, texture, motion and noise");
+  options->AddRequiredString(
+      "output_path", &sim->output_path, "sequence folder to create");
+  options->AddInt("supersampling",
+                  &sim->supersampling,
+                  "camera rays per pixel = n x n",
+                  R::Between(1, 8));
+  options->AddBool("color", &sim->color, "colour images instead of grayscale");
+  options->AddBool("rgbd", &sim->rgbd, "add an RGB-D camera (rgbd0/, 640x480)");
+  options->AddDouble("rgbd_rate",
+                     &sim->rgbd_rate,
+                     "RGB-D frames per second",
+                     R::GreaterThan(0).AndAtMost(100));
+  options->AddBool(
+      "overwrite", &sim->overwrite, "replace an existing output folder");
+  options->AddStructCheck([sim] { return sim->Check(); });
+}
+
+void AddGlobalMapperOptions(OptionManager* options,
+                            colmap::GlobalMapperOptions* mapper) {
+  options->AddInt("Mapper.num_refinement_rounds",
+                  &mapper->num_refinement_rounds,
+                  "rounds of bundle adjustment -> filter -> retriangulate "
+                  "before the final BA",
+                  R::AtLeast(0));
+  options->AddDouble(
+      "Mapper.refinement_function_tolerance",
+      &mapper->refinement_function_tolerance,
+      "relative cost change that ends a refinement round's bundle adjustment",
+      R::AtLeast(0));
+  options->AddBool("Mapper.final_full_bundle_adjustment",
+                   &mapper->final_full_bundle_adjustment,
+                   "the final bundle adjustment uses every point");
+  options->AddInt("Mapper.final_max_num_iterations",
+                  &mapper->final_max_num_iterations,
+                  "iteration cap of the final full bundle adjustment",
+                  R::AtLeast(0));
+  options->AddInt("Mapper.min_component_frames",
+                  &mapper->min_component_frames,
+                  "components with fewer frames are not reconstructed",
+                  R::AtLeast(1));
+  options->AddBool("Mapper.reconstruct_all_components",
+                   &mapper->reconstruct_all_components,
+                   "one model per component (false: only the largest)");
+  options->AddInt("Mapper.min_frame_observations",
+                  &mapper->min_frame_observations,
+                  "frames seeing fewer triangulated points are dropped",
+                  R::AtLeast(0));
+  options->AddDouble(
+      "Mapper.lidar_constraint_tolerance_ms",
+      &mapper->lidar_constraint_tolerance_ms,
+      "ms, constraint stamps attach to frames within this tolerance",
+      R::AtLeast(0));
+  options->AddBool("Mapper.read_colors",
+                   &mapper->read_colors,
+                   "read point colours from the images");
+  options->AddBool("Mapper.skip_rotation_averaging",
+                   &mapper->skip_rotation_averaging,
+                   "no rotation averaging: frames take their prior rotations "
+                   "(frames without "
+                   "one are dropped)");
+  options->AddBool(
+      "Mapper.skip_translation_averaging",
+      &mapper->skip_translation_averaging,
+      "no translation averaging: frames take their prior positions (frames "
+      "without one are dropped)");
+  options->AddBool(
+      "Mapper.skip_bundle_adjustment",
+      &mapper->skip_bundle_adjustment,
+      "no bundle adjustment (refinement rounds and final); tracks are still "
+      "filtered");
+  options->AddBool("Mapper.skip_retriangulation",
+                   &mapper->skip_retriangulation,
+                   "no retriangulation in the refinement rounds");
+  AddLoadMapperStateOptions(options, &mapper->load);
+  AddViewGraphOptions(options, &mapper->view_graph);
+  AddRotationAveragingOptions(options, &mapper->rotation_averaging);
+  AddTranslationAveragingOptions(options, &mapper->translation_averaging);
+  AddTrackOptions(options, &mapper->tracks);
+  AddTriangulationOptions(options, &mapper->triangulation);
+  AddBundleAdjustmentOptions(options, &mapper->bundle_adjustment);
+  options->AddStructCheck([mapper] { return mapper->Check(); });
+}
+
+void AddLoadMapperStateOptions(OptionManager* options,
+                               colmap::LoadMapperStateOptions* load) {
+  options->AddBool(
+      "Priors.use_priors", &load->use_priors, "use the database's pose priors");
+  options->AddAlias("Priors.use", "Priors.use_priors");
+  options->AddDouble(
+      "Priors.prior_position_sigma",
+      &load->prior_position_sigma,
+      "m, prior position std where the database has no covariance",
+      R::GreaterThan(0));
+  options->AddAlias("Priors.position_sigma", "Priors.prior_position_sigma");
+  options->AddDouble("Priors.prior_rotation_sigma",
+                     &load->prior_rotation_sigma,
+                     "rad, prior rotation std",
+                     R::GreaterThan(0));
+  options->AddAlias("Priors.rotation_sigma", "Priors.prior_rotation_sigma");
+  options->AddStructCheck([load] { return load->Check(); });
+}
+
+void AddViewGraphOptions(OptionManager* options,
+                         colmap::ViewGraphOptions* view_graph) {
+  options->AddInt("ViewGraph.min_num_inliers",
+                  &view_graph->min_num_inliers,
+                  "pairs with fewer inlier matches are ignored",
+                  R::AtLeast(5));
+  options->AddDouble("ViewGraph.min_inlier_ratio",
+                     &view_graph->min_inlier_ratio,
+                     "pairs with a lower inlier ratio are ignored",
+                     R::Between(0, 1));
+  options->AddDouble("ViewGraph.max_error_px",
+                     &view_graph->max_error_px,
+                     "px, RANSAC threshold of the relative pose re-estimation",
+                     R::GreaterThan(0));
+  options->AddBool(
+      "ViewGraph.reestimate_relative_poses",
+      &view_graph->reestimate_relative_poses,
+      "re-estimate relative poses (5-point RANSAC) from the inlier matches");
+  options->AddBool(
+      "ViewGraph.use_database_essential",
+      &view_graph->use_database_essential,
+      "CALIBRATED pairs: start from the database's E instead of a new RANSAC");
+  options->AddDouble("ViewGraph.ransac_confidence",
+                     &view_graph->ransac_confidence,
+                     "RANSAC success probability",
+                     R::GreaterThan(0).AndLessThan(1));
+  options->AddInt("ViewGraph.ransac_max_iterations",
+                  &view_graph->ransac_max_iterations,
+                  "RANSAC iteration cap",
+                  R::AtLeast(1));
+  options->AddInt("ViewGraph.ransac_max_num_matches",
+                  &view_graph->ransac_max_num_matches,
+                  "RANSAC on at most this many matches (an even subsample)",
+                  R::AtLeast(5));
+  options->AddBool("ViewGraph.refine_relative_poses",
+                   &view_graph->refine_relative_poses,
+                   "Sampson least-squares polish after RANSAC");
+  options->AddInt("ViewGraph.refine_max_num_matches",
+                  &view_graph->refine_max_num_matches,
+                  "the polish uses at most this many matches",
+                  R::AtLeast(5));
+  options->AddStructCheck([view_graph] { return view_graph->Check(); });
+}
+
+void AddRotationAveragingOptions(
+    OptionManager* options,
+    colmap::RotationAveragingOptions* rotation_averaging) {
+  colmap::RotationAveragingOptions* ra = rotation_averaging;
+  options->AddDouble(
+      "RotationAveraging.max_rotation_error_deg",
+      &ra->max_rotation_error_deg,
+      "deg, edges with a larger residual are removed and the average re-run",
+      R::GreaterThan(0));
+  options->AddDouble("RotationAveraging.geman_mcclure_sigma_deg",
+                     &ra->geman_mcclure_sigma_deg,
+                     "deg, robust loss scale",
+                     R::GreaterThan(0));
+  options->AddDouble(
+      "RotationAveraging.max_loop_error_deg",
+      &ra->max_loop_error_deg,
+      "deg, a triangle of relative rotations closing within this is consistent",
+      R::GreaterThan(0));
+  options->AddInt("RotationAveraging.max_l1_iterations",
+                  &ra->max_l1_iterations,
+                  "L1 IRLS iterations before Geman-McClure (0 = none)",
+                  R::AtLeast(0));
+  options->AddDouble("RotationAveraging.l1_tolerance_rad",
+                     &ra->l1_tolerance_rad,
+                     "rad, the L1 stage stops when max |update| is below",
+                     R::GreaterThan(0));
+  options->AddInt("RotationAveraging.max_irls_iterations",
+                  &ra->max_irls_iterations,
+                  "Geman-McClure IRLS iterations",
+                  R::AtLeast(0));
+  options->AddDouble("RotationAveraging.convergence_tolerance_rad",
+                     &ra->convergence_tolerance_rad,
+                     "rad, stop when max |update| is below",
+                     R::GreaterThan(0));
+  options->AddDouble("RotationAveraging.relative_rotation_sigma_deg",
+                     &ra->relative_rotation_sigma_deg,
+                     "deg, per-axis std of an edge's relative rotation",
+                     R::GreaterThan(0));
+  options->AddBool("RotationAveraging.use_rotation_priors",
+                   &ra->use_rotation_priors,
+                   "unary prior terms and prior initialisation");
+  options->AddDouble("RotationAveraging.fallback_prior_sigma_rad",
+                     &ra->fallback_prior_sigma_rad,
+                     "rad, prior std where the frame has none",
+                     R::GreaterThan(0));
+  options->AddBool("RotationAveraging.use_lidar_constraints",
+                   &ra->use_lidar_constraints,
+                   "LiDAR relative rotations as measurements");
+  options->AddBool(
+      "RotationAveraging.weight_by_num_inliers",
+      &ra->weight_by_num_inliers,
+      "scale edge information by the edge's inliers / mean inliers");
+  options->AddStructCheck([ra] { return ra->Check(); });
+}
+
+void AddTranslationAveragingOptions(
+    OptionManager* options,
+    colmap::TranslationAveragingOptions* translation_averaging) {
+  colmap::TranslationAveragingOptions* ta = translation_averaging;
+  options->AddBool("TranslationAveraging.filter_1dsfm",
+                   &ta->filter_1dsfm,
+                   "1dSfM outlier filtering of the relative directions");
+  options->AddInt("TranslationAveraging.num_projections",
+                  &ta->num_projections,
+                  "1dSfM random projections",
+                  R::AtLeast(1));
+  options->AddDouble("TranslationAveraging.min_projection_magnitude",
+                     &ta->min_projection_magnitude,
+                     "1dSfM: projections |d . axis| below this are left out",
+                     R::AtLeast(0).AndLessThan(1));
+  options->AddDouble(
+      "TranslationAveraging.max_broken_ratio",
+      &ta->max_broken_ratio,
+      "1dSfM: edges inconsistent in more than this fraction of projections are "
+      "removed",
+      R::Between(0, 1));
+  options->AddDouble(
+      "TranslationAveraging.axis_perturbation_sigma",
+      &ta->axis_perturbation_sigma,
+      "1dSfM: std of the noise added to a sampled direction to form an axis",
+      R::AtLeast(0));
+  options->AddDouble("TranslationAveraging.direction_sigma",
+                     &ta->direction_sigma,
+                     "rad, expected angular noise of an edge direction",
+                     R::GreaterThan(0));
+  options->AddChoice("TranslationAveraging.direction_loss",
+                     &ta->direction_loss,
+                     {"cauchy", "huber", "none"},
+                     "robust loss on the direction residuals");
+  options->AddDouble("TranslationAveraging.direction_loss_threshold",
+                     &ta->direction_loss_threshold,
+                     "scale of the direction loss (~rad)",
+                     R::GreaterThan(0));
+  options->AddDouble("TranslationAveraging.min_edge_scale",
+                     &ta->min_edge_scale,
+                     "lower bound of the per-edge scales",
+                     R::GreaterThan(0));
+  options->AddBool("TranslationAveraging.use_priors",
+                   &ta->use_priors,
+                   "use the frames' position priors");
+  options->AddBool("TranslationAveraging.use_lidar_constraints",
+                   &ta->use_lidar_constraints,
+                   "use the LiDAR relative translations");
+  options->AddBool("TranslationAveraging.use_rig_baselines_for_scale",
+                   &ta->use_rig_baselines_for_scale,
+                   "metric rig baselines fix the scale (no scale gauge)");
+  options->AddDouble("TranslationAveraging.min_rig_baseline",
+                     &ta->min_rig_baseline,
+                     "m, rig baselines shorter than this do not fix the scale",
+                     R::AtLeast(0));
+  options->AddBool("TranslationAveraging.init_from_current",
+                   &ta->init_from_current,
+                   "initialise from the frames' current positions");
+  options->AddDouble("TranslationAveraging.random_init_extent",
+                     &ta->random_init_extent,
+                     "half side of the cube of random initial positions",
+                     R::GreaterThan(0));
+  options->AddDouble("TranslationAveraging.max_residual_angle_deg",
+                     &ta->max_residual_angle_deg,
+                     "deg, edges disagreeing more with the positions are "
+                     "removed and the solve "
+                     "re-run (<= 0: one solve)");
+  options->AddInt("TranslationAveraging.max_num_iterations",
+                  &ta->max_num_iterations,
+                  "Ceres iterations",
+                  R::AtLeast(1));
+  options->AddDouble("TranslationAveraging.function_tolerance",
+                     &ta->function_tolerance,
+                     "Ceres relative cost change to stop",
+                     R::AtLeast(0));
+  options->AddUint64("TranslationAveraging.random_seed",
+                     &ta->random_seed,
+                     "seeds the 1dSfM axes and the random initialisation");
+  options->AddStructCheck([ta] { return ta->Check(); });
+}
+
+void AddTrackOptions(OptionManager* options, colmap::TrackOptions* tracks) {
+  options->AddInt("Triangulation.min_track_length",
+                  &tracks->min_track_length,
+                  "images per track, at least",
+                  R::AtLeast(2));
+  options->AddInt("Triangulation.max_track_length",
+                  &tracks->max_track_length,
+                  "images per track, at most (0 = no cap; >= min_track_length)",
+                  R::AtLeast(2).Or(0));
+  options->AddStructCheck([tracks] { return tracks->Check(); });
+}
+
+void AddTriangulationOptions(OptionManager* options,
+                             colmap::TriangulationOptions* triangulation) {
+  options->AddDouble("Triangulation.max_reprojection_error_px",
+                     &triangulation->max_reprojection_error_px,
+                     "px, observations with a larger error are rejected",
+                     R::GreaterThan(0));
+  options->AddDouble(
+      "Triangulation.min_triangulation_angle_deg",
+      &triangulation->min_triangulation_angle_deg,
+      "deg, points with a smaller maximum triangulation angle are dropped",
+      R::AtLeast(0).AndLessThan(180));
+  options->AddInt("Triangulation.num_refinement_iterations",
+                  &triangulation->num_refinement_iterations,
+                  "Levenberg-Marquardt iterations on the reprojection error",
+                  R::AtLeast(0));
+  options->AddInt("Triangulation.max_hypothesis_pairs",
+                  &triangulation->max_hypothesis_pairs,
+                  "pair hypotheses of the robust triangulation",
+                  R::AtLeast(1));
+  options->AddStructCheck([triangulation] { return triangulation->Check(); });
+}
+
+void AddBundleAdjustmentOptions(
+    OptionManager* options,
+    colmap::BundleAdjustmentOptions* bundle_adjustment) {
+  colmap::BundleAdjustmentOptions* ba = bundle_adjustment;
+  options->AddBool("BundleAdjustment.refine_focal_length",
+                   &ba->refine_focal_length,
+                   "refine focal lengths");
+  options->AddBool("BundleAdjustment.refine_principal_point",
+                   &ba->refine_principal_point,
+                   "refine principal points");
+  options->AddBool("BundleAdjustment.refine_extra_params",
+                   &ba->refine_extra_params,
+                   "refine distortion parameters");
+  options->AddBool("BundleAdjustment.refine_cam_from_rig",
+                   &ba->refine_cam_from_rig,
+                   "refine the camera-in-rig extrinsics (with a rig)");
+  options->AddBool("BundleAdjustment.refine_frame_poses",
+                   &ba->refine_frame_poses,
+                   "refine the frame poses (0: structure only)");
+  options->AddBool("BundleAdjustment.use_priors",
+                   &ba->use_priors,
+                   "frame position / rotation prior residuals");
+  options->AddBool("BundleAdjustment.use_lidar_constraints",
+                   &ba->use_lidar_constraints,
+                   "LiDAR relative pose residuals");
+  options->AddChoice("BundleAdjustment.loss_type",
+                     &ba->loss_type,
+                     {"trivial", "huber", "cauchy"},
+                     "robust loss of the reprojection residuals");
+  options->AddDouble("BundleAdjustment.loss_scale",
+                     &ba->loss_scale,
+                     "px, scale of the robust loss",
+                     R::GreaterThan(0));
+  options->AddInt(
+      "BundleAdjustment.max_tracks_per_image",
+      &ba->max_tracks_per_image,
+      "adjust only each image's best N tracks (0 = all); the others are "
+      "re-triangulated after each adjustment",
+      R::AtLeast(0));
+  options->AddDouble("BundleAdjustment.function_tolerance",
+                     &ba->function_tolerance,
+                     "relative cost change that stops the adjustment",
+                     R::AtLeast(0));
+  options->AddDouble("BundleAdjustment.gradient_tolerance",
+                     &ba->gradient_tolerance,
+                     "Ceres gradient tolerance",
+                     R::AtLeast(0));
+  options->AddDouble("BundleAdjustment.parameter_tolerance",
+                     &ba->parameter_tolerance,
+                     "relative step size that stops the adjustment",
+                     R::AtLeast(0));
+  options->AddInt("BundleAdjustment.max_num_iterations",
+                  &ba->max_num_iterations,
+                  "Levenberg-Marquardt iterations",
+                  R::AtLeast(0));
+  options->AddInt("BundleAdjustment.dense_schur_max_frames",
+                  &ba->dense_schur_max_frames,
+                  "up to this many frames: the dense-Schur solvers",
+                  R::AtLeast(0));
+  options->AddChoice(
+      "BundleAdjustment.solver",
+      &ba->solver,
+      {"auto", "ceres", "schur"},
+      "auto: lisfm's dense-Schur LM up to dense_schur_max_frames frames (no "
+      "cam_from_rig refinement), Ceres otherwise");
+  options->AddStructCheck([ba] { return ba->Check(); });
+}
+
+}  // namespace lisfm

@@ -1,0 +1,80 @@
+// The command-line registration of each library options struct, written once
+// and shared by every command that exposes the struct (COLMAP's
+// OptionManager::AddXxxOptions). Each function registers the struct's fields
+// by pointer as `Section.field_name` (the section fixed per struct, given
+// below), with the field's range (shown by -h, validated by Parse) and an
+// OptionManager::AddStructCheck of the struct's Check() for the constraints
+// between fields. Former names stay accepted as aliases.
+//
+// The ranges here and the CHECK_OPTION_* limits of the structs' Check() are the
+// same by contract: apps/option_sections_test.cc sets every registered field
+// just outside its range and expects Check() to reject exactly that field.
+#pragma once
+
+#include "colmap_ext/sfm/global_mapper.h"
+#include "colmap_ext/sfm/sfm_evaluation.h"
+#include "core/evaluation.h"
+#include "core/options.h"
+#include "icp/bayesian_icp.h"
+#include "icp/icp.h"
+#include "icp/normals.h"
+#include "lio/imu.h"
+#include "lio/lio_odometry.h"
+#include "lio/voxel_map.h"
+#include "sim/simulator.h"
+
+namespace lisfm {
+
+// Icp.*: point-to-plane ICP.
+void AddIcpOptions(OptionManager* options, IcpOptions* icp);
+// Icp.num_neighbors, Icp.max_radius_m: the target's PCA normals.
+void AddNormalOptions(OptionManager* options, NormalOptions* normals);
+// Bayesian.*: the SGLD chain.
+void AddSgldOptions(OptionManager* options, SgldOptions* sgld);
+// Bayesian.*: the likelihood, the chain (AddSgldOptions) and the calibrated
+// association of Bayesian ICP: of bayes->icp only kernel, kernel_scale_m,
+// min_planarity, field_of_view_gate and visibility_gate_m are registered
+// (the command takes the other bayes->icp fields from its Icp.* options).
+void AddBayesianIcpOptions(OptionManager* options, BayesianIcpOptions* bayes);
+
+// Lio.*, plus Map.* (AddVoxelMapOptions) and Init.* (AddImuInitializerOptions).
+void AddLioOptions(OptionManager* options, LioOptions* lio);
+void AddVoxelMapOptions(OptionManager* options, VoxelMapOptions* map);
+void AddImuInitializerOptions(OptionManager* options,
+                              ImuInitializerOptions* init);
+
+// `alignment` (alias `align`); no section (lisfm evaluate). The association
+// tolerance is the command's --max_dt (seconds; its default depends on the
+// reference type).
+void AddTrajectoryEvaluationOptions(OptionManager* options,
+                                    TrajectoryEvaluationOptions* eval);
+// `alignment`; no section (lisfm model_evaluator).
+void AddSfmEvaluationOptions(OptionManager* options,
+                             colmap::SfmEvaluationOptions* eval);
+
+// No section (lisfm simulate); `output_path` is required.
+void AddSimulatorOptions(OptionManager* options, sim::SimulatorOptions* sim);
+
+// Mapper.* and the stages: Priors.*, ViewGraph.*, RotationAveraging.*,
+// TranslationAveraging.*, Triangulation.* (tracks and triangulation),
+// BundleAdjustment.*. The stages' num_threads are not registered (the command
+// sets them from its --num_threads).
+void AddGlobalMapperOptions(OptionManager* options,
+                            colmap::GlobalMapperOptions* mapper);
+void AddLoadMapperStateOptions(OptionManager* options,
+                               colmap::LoadMapperStateOptions* load);
+void AddViewGraphOptions(OptionManager* options,
+                         colmap::ViewGraphOptions* view_graph);
+void AddRotationAveragingOptions(
+    OptionManager* options,
+    colmap::RotationAveragingOptions* rotation_averaging);
+void AddTranslationAveragingOptions(
+    OptionManager* options,
+    colmap::TranslationAveragingOptions* translation_averaging);
+void AddTrackOptions(OptionManager* options, colmap::TrackOptions* tracks);
+void AddTriangulationOptions(OptionManager* options,
+                             colmap::TriangulationOptions* triangulation);
+void AddBundleAdjustmentOptions(
+    OptionManager* options, colmap::BundleAdjustmentOptions* bundle_adjustment);
+
+}  // namespace lisfm
