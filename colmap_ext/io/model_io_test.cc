@@ -12,12 +12,18 @@ namespace lisfm {
 namespace colmap {
 namespace {
 
+// 8 images of 3 cameras (PINHOLE, OPENCV_FISHEYE, OPENCV), 150 points seen by
+// 3 images each with 0.5 px noise, 5 keypoints per image without a point.
 Reconstruction SmallModel() {
-  SyntheticModelOptions options;
+  SyntheticDatasetOptions options;
+  options.num_frames = 8;
   options.num_cameras = 3;
-  options.num_images = 8;
+  options.camera_models = {"PINHOLE", "OPENCV_FISHEYE", "OPENCV"};
   options.num_points = 150;
-  return SynthesizeModel(options);
+  options.track_length = 3;
+  options.pixel_noise = 0.5;
+  options.num_random_keypoints = 5;
+  return SyntheticReconstruction(SynthesizeDataset(options));
 }
 
 // Exact equality of everything the files hold; `b` is read back from files

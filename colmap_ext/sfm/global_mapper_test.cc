@@ -1,13 +1,14 @@
 // End-to-end tests of RunGlobalMapper on synthetic databases with exact
-// ground truth (colmap_ext/sfm_synthetic.h): all stages together.
+// ground truth (colmap_ext/testing/synthetic.h): all stages together.
 #include "colmap_ext/sfm/global_mapper.h"
 
 #include <cmath>
 
 #include <gtest/gtest.h>
 
-#include "colmap_ext/testing/sfm_synthetic.h"
+#include "colmap_ext/testing/synthetic.h"
 #include "core/errors.h"
+#include "core/io/lidar_constraints_io.h"
 #include "core/io/rig_io.h"
 #include "tests/common/test_utils.h"
 
@@ -27,7 +28,8 @@ struct PoseErrors {
 
 // Aligns the model's camera centres to the truth (Sim3 or SE3) and measures
 // per-image rotation and position errors.
-PoseErrors Evaluate(const Reconstruction& model, const SyntheticSfmScene& scene,
+PoseErrors Evaluate(const Reconstruction& model,
+                    const SyntheticDataset& dataset,
                     bool estimate_scale) {
   PoseErrors e;
   std::vector<image_t> ids;
@@ -36,7 +38,7 @@ PoseErrors Evaluate(const Reconstruction& model, const SyntheticSfmScene& scene,
   Eigen::Matrix3Xd source(3, ids.size()), target(3, ids.size());
   for (size_t i = 0; i < ids.size(); ++i) {
     source.col(i) = model.GetImage(ids[i]).ProjectionCenter();
-    target.col(i) = scene.gt_cam_from_world.at(ids[i]).Inverse().translation();
+    target.col(i) = dataset.GetImage(ids[i]).gt_cam_from_world.Inverse().translation();
   }
   const Sim3 world_from_model = AlignUmeyama(source, target, estimate_scale);
   e.scale = world_from_model.scale;
@@ -48,7 +50,7 @@ PoseErrors Evaluate(const Reconstruction& model, const SyntheticSfmScene& scene,
     // Rotation: R_est_aligned = R_est * R_align^T.
     const Quat est = model.GetImage(ids[i]).CamFromWorld().rotation() *
                      world_from_model.pose.rotation().conjugate();
-    const Quat gt = scene.gt_cam_from_world.at(ids[i]).rotation();
+    const Quat gt = dataset.GetImage(ids[i]).gt_cam_from_world.rotation();
     e.max_rotation_deg = std::max(e.max_rotation_deg, so3::AngularDistance(est, gt) * kRadToDeg);
   }
   return e;
@@ -56,22 +58,23 @@ PoseErrors Evaluate(const Reconstruction& model, const SyntheticSfmScene& scene,
 
 TEST(GlobalMapper, RingWithOutliersRecoversCamerasUpToSimilarity) {
   test::TempDir dir;
-  SyntheticSfmOptions o;
+  SyntheticDatasetOptions o;
   o.num_frames = 24;
   o.num_points = 1500;
   o.pixel_noise = 0.5;
   o.outlier_match_ratio = 0.1;
   o.outlier_pair_ratio = 0.1;
   o.seed = 7;
-  const SyntheticSfmScene scene = WriteSyntheticSfmDatabase(o, dir.File("db.db"));
+  const SyntheticDataset dataset = SynthesizeDataset(o);
+  WriteSyntheticDatabase(dataset, dir.File("db.db"));
   const Database database(dir.File("db.db"), Database::OpenMode::kReadOnly);
   GlobalMapperOptions options;
   const GlobalMapperResult result = RunGlobalMapper(database, nullptr, {}, "", options);
   ASSERT_EQ(result.models.size(), 1u) << result.summary.dump(2);
   const Reconstruction& model = result.models.front();
   model.Validate("global_mapper");
-  EXPECT_EQ(model.NumImages(), scene.gt_cam_from_world.size());
-  const PoseErrors e = Evaluate(model, scene, /*estimate_scale=*/true);
+  EXPECT_EQ(model.NumImages(), dataset.images.size());
+  const PoseErrors e = Evaluate(model, dataset, /*estimate_scale=*/true);
   // 0.5 px noise at f = 350 px over ~1000 points per image: the pose
   // uncertainty is a few thousandths of a degree; 0.05 deg leaves margin
   // while still failing for any mis-registered camera.
@@ -88,11 +91,12 @@ TEST(GlobalMapper, RingWithOutliersRecoversCamerasUpToSimilarity) {
 
 TEST(GlobalMapper, RigWithPriorsAndLidarConstraintsIsMetric) {
   test::TempDir dir;
-  SyntheticSfmOptions o;
+  SyntheticDatasetOptions o;
   o.num_frames = 20;
-  o.num_rig_cameras = 5;
+  o.with_rig = true;
+  o.num_cameras = 5;
   o.trajectory = SyntheticTrajectory::kRoom;
-  o.camera_model = "OPENCV_FISHEYE";
+  o.camera_models = {"OPENCV_FISHEYE"};
   o.num_points = 3000;
   o.pixel_noise = 0.5;
   o.max_frame_gap = 3;
@@ -104,13 +108,15 @@ TEST(GlobalMapper, RigWithPriorsAndLidarConstraintsIsMetric) {
   o.num_lidar_neighbors = 2;
   o.lidar_translation_noise = 0.005;
   o.lidar_rotation_noise = 0.1 * M_PI / 180.0;
-  o.rig_path = dir.File("rig.yaml");
-  o.lidar_constraints_path = dir.File("constraints.txt");
   o.seed = 11;
-  const SyntheticSfmScene scene = WriteSyntheticSfmDatabase(o, dir.File("db.db"));
-  const Rig rig = ReadRigYaml(o.rig_path);
+  const SyntheticDataset dataset = SynthesizeDataset(o);
+  WriteSyntheticDatabase(dataset, dir.File("db.db"));
+  // The mapper reads the rig and the constraints back from their files.
+  WriteRigYaml(dir.File("rig.yaml"), dataset.rig);
+  WriteLidarConstraints(dataset.constraints, dir.File("constraints.txt"));
+  const Rig rig = ReadRigYaml(dir.File("rig.yaml"));
   const std::vector<LidarConstraintRecord> constraints =
-      ReadLidarConstraints(o.lidar_constraints_path);
+      ReadLidarConstraints(dir.File("constraints.txt"));
   const Database database(dir.File("db.db"), Database::OpenMode::kReadOnly);
   GlobalMapperOptions options;
   options.load.prior_position_sigma = 0.02;
@@ -119,21 +125,21 @@ TEST(GlobalMapper, RigWithPriorsAndLidarConstraintsIsMetric) {
   ASSERT_EQ(result.models.size(), 1u) << result.summary.dump(2);
   const Reconstruction& model = result.models.front();
   model.Validate("global_mapper");
-  EXPECT_EQ(model.NumImages(), scene.gt_cam_from_world.size());
+  EXPECT_EQ(model.NumImages(), dataset.images.size());
   EXPECT_EQ(model.Frames().size(), static_cast<size_t>(o.num_frames));
   EXPECT_EQ(model.Rigs().size(), 1u);
   // Accuracy targets after an SE(3) alignment: 0.05 deg, 5 mm.
-  const PoseErrors se3 = Evaluate(model, scene, /*estimate_scale=*/false);
+  const PoseErrors se3 = Evaluate(model, dataset, /*estimate_scale=*/false);
   EXPECT_LT(se3.max_rotation_deg, 0.05);
   EXPECT_LT(se3.max_position, 0.005);
   // Metric: the free Sim3 alignment finds scale 1 within 0.2 %.
-  const PoseErrors sim3 = Evaluate(model, scene, /*estimate_scale=*/true);
+  const PoseErrors sim3 = Evaluate(model, dataset, /*estimate_scale=*/true);
   EXPECT_NEAR(sim3.scale, 1.0, 0.002);
   // Gauge: the priors put the model in their world frame without alignment;
   // 20 frames of 2 cm priors average to well under 2 cm.
   double max_offset = 0.0;
   for (const Image& image : model.Images()) {
-    const Vec3 gt = scene.gt_cam_from_world.at(image.image_id).Inverse().translation();
+    const Vec3 gt = dataset.GetImage(image.image_id).gt_cam_from_world.Inverse().translation();
     max_offset = std::max(max_offset, (image.ProjectionCenter() - gt).norm());
   }
   EXPECT_LT(max_offset, 0.02);
@@ -143,14 +149,13 @@ TEST(GlobalMapper, DisconnectedViewGraphGivesOneModelPerComponent) {
   test::TempDir dir;
   // A forward loop with pairs only between close frames, then the pairs that
   // bridge the two halves are deleted.
-  SyntheticSfmOptions o;
+  SyntheticDatasetOptions o;
   o.num_frames = 16;
   o.trajectory = SyntheticTrajectory::kRoom;
   o.num_points = 2500;
   o.max_frame_gap = 2;
   o.pixel_noise = 0.3;
-  const SyntheticSfmScene scene = WriteSyntheticSfmDatabase(o, dir.File("db.db"));
-  (void)scene;
+  WriteSyntheticDatabase(SynthesizeDataset(o), dir.File("db.db"));
   {
     Database database(dir.File("db.db"), Database::OpenMode::kReadWrite);
     // Images 1..16; cut every pair that links {1..8} with {9..16}.
@@ -167,9 +172,9 @@ TEST(GlobalMapper, DisconnectedViewGraphGivesOneModelPerComponent) {
 
 TEST(GlobalMapper, DatabaseWithoutTwoViewGeometriesIsAnInputError) {
   test::TempDir dir;
-  SyntheticSfmOptions o;
+  SyntheticDatasetOptions o;
   o.num_frames = 5;
-  WriteSyntheticSfmDatabase(o, dir.File("db.db"));
+  WriteSyntheticDatabase(SynthesizeDataset(o), dir.File("db.db"));
   {
     Database database(dir.File("db.db"), Database::OpenMode::kReadWrite);
     database.ClearTwoViewGeometries();
@@ -180,9 +185,9 @@ TEST(GlobalMapper, DatabaseWithoutTwoViewGeometriesIsAnInputError) {
 
 TEST(GlobalMapper, CameraWithoutUsableIntrinsicsIsAnInputError) {
   test::TempDir dir;
-  SyntheticSfmOptions o;
+  SyntheticDatasetOptions o;
   o.num_frames = 4;
-  WriteSyntheticSfmDatabase(o, dir.File("db.db"));
+  WriteSyntheticDatabase(SynthesizeDataset(o), dir.File("db.db"));
   {
     Database database(dir.File("db.db"), Database::OpenMode::kReadWrite);
     Camera camera = database.ReadAllCameras().front();
@@ -196,13 +201,14 @@ TEST(GlobalMapper, CameraWithoutUsableIntrinsicsIsAnInputError) {
 
 TEST(GlobalMapper, RigThatLacksACameraOfTheDatabaseIsAnInputError) {
   test::TempDir dir;
-  SyntheticSfmOptions o;
+  SyntheticDatasetOptions o;
   o.num_frames = 4;
-  o.num_rig_cameras = 3;
+  o.with_rig = true;
+  o.num_cameras = 3;
   o.trajectory = SyntheticTrajectory::kRoom;
-  o.rig_path = dir.File("rig.yaml");
-  WriteSyntheticSfmDatabase(o, dir.File("db.db"));
-  Rig rig = ReadRigYaml(o.rig_path);
+  const SyntheticDataset dataset = SynthesizeDataset(o);
+  WriteSyntheticDatabase(dataset, dir.File("db.db"));
+  Rig rig = dataset.rig;
   rig.cameras.pop_back();  // images of cam2 now name a camera the rig lacks
   const Database database(dir.File("db.db"), Database::OpenMode::kReadOnly);
   EXPECT_TRUE(
