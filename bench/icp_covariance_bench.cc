@@ -82,6 +82,7 @@
 #include "icp/icp.h"
 #include "icp/icp_covariance.h"
 #include "icp/normals.h"
+#include "icp/testing/covariance_calibration.h"
 #include "icp/testing/sim_pairs.h"
 
 namespace lisfm {

@@ -9,6 +9,7 @@
 #include "core/errors.h"
 #include "icp/bayesian_icp.h"
 #include "icp/icp_covariance.h"
+#include "icp/testing/covariance_calibration.h"
 #include "icp/testing/sim_pairs.h"
 
 namespace lisfm {
