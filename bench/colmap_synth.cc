@@ -15,18 +15,27 @@ int main(int argc, char** argv) {
     return 2;
   }
   try {
-    lisfm::colmap::SyntheticModelOptions options;
+    // Five 1280 x 960 cameras in turn (PINHOLE, OPENCV_FISHEYE, OPENCV, ...) on
+    // a ring around a cube of points; 0.5 px noise, 500 keypoints per image
+    // without a point.
+    lisfm::colmap::SyntheticDatasetOptions options;
+    options.num_frames = argc > 2 ? std::atoi(argv[2]) : 1000;
     options.num_cameras = 5;
-    options.num_images = argc > 2 ? std::atoi(argv[2]) : 1000;
+    options.camera_models = {"PINHOLE", "OPENCV_FISHEYE", "OPENCV"};
+    options.image_width = 1280;
+    options.image_height = 960;
+    options.focal_length = 800.0;
     options.num_points = argc > 3 ? std::atoi(argv[3]) : 500000;
     options.track_length = argc > 4 ? std::atoi(argv[4]) : 4;
-    options.unobserved_per_image = 500;
+    options.pixel_noise = 0.5;
+    options.num_random_keypoints = 500;
     const bool text = argc > 5 && std::string(argv[5]) == "txt";
     if (!options.Check()) {
       std::cerr << "error: invalid sizes\n";
       return 2;
     }
-    const auto model = lisfm::colmap::SynthesizeModel(options);
+    const auto model =
+        lisfm::colmap::SyntheticReconstruction(lisfm::colmap::SynthesizeDataset(options));
     lisfm::colmap::WriteModel(model, argv[1],
                               text ? lisfm::colmap::ModelFormat::kText
                                    : lisfm::colmap::ModelFormat::kBinary);

@@ -82,6 +82,7 @@
 #include "icp/icp.h"
 #include "icp/icp_covariance.h"
 #include "icp/normals.h"
+#include "icp/testing/covariance_calibration.h"
 #include "icp/testing/sim_pairs.h"
 
 namespace lisfm {
@@ -577,7 +578,7 @@ void BlockNees(const MethodRun& run, double* rot, double* trans) {
 void Timing(int count) {
   double sim_ms = 0;
   const std::vector<PreparedPair> pairs = Prepare("office", count, 21, &sim_ms, 0.05);
-  double icp_ms = 0, sandwich_ms = 0, total_ms = 0, points = 0, old_ms = 0;
+  double icp_ms = 0, sandwich_ms = 0, total_ms = 0, points = 0, huber_ms = 0;
   for (size_t k = 0; k < pairs.size(); ++k) {
     BayesianIcpOptions b;  // library defaults (association included)
     b.sgld.seed = 1000 + k;
@@ -601,22 +602,23 @@ void Timing(int count) {
         RegisterBayesian(pairs[k].source, target, pairs[k].initial, b);
     total_ms += Ms(t0);
     THROW_CHECK_GT(r.posterior.num_term_evaluations, 0u);
-    BayesianIcpOptions s3 = b;  // baseline: Huber 0.1 m, k = 10, 24 cells, 1.015
-    s3.icp = BenchIcpOptions();
-    s3.block_tempering = false;
-    s3.plane_fit_variance = false;
-    s3.num_correlation_cells = 24;
-    s3.noise_sigma_scale = 1.015;
+    BayesianIcpOptions huber = b;  // baseline: Huber 0.1 m, k = 10, 24 cells, 1.015
+    huber.icp = BenchIcpOptions();
+    huber.block_tempering = false;
+    huber.plane_fit_variance = false;
+    huber.num_correlation_cells = 24;
+    huber.noise_sigma_scale = 1.015;
     t0 = Clock::now();
-    RegisterBayesian(pairs[k].source, *pairs[k].target, pairs[k].initial, s3);
-    old_ms += Ms(t0);
+    RegisterBayesian(pairs[k].source, *pairs[k].target, pairs[k].initial, huber);
+    huber_ms += Ms(t0);
     points += static_cast<double>(pairs[k].source.size());
   }
   const double n = static_cast<double>(pairs.size());
   std::printf("timing (office, source voxel 0.05 m, mean %.0f source points): RegisterBayesian "
               "(default) %.1f ms per pair, of which ICP %.1f ms, cells + variance model + sandwich "
-              "%.1f ms, SGLD the rest; session-3 default (no plane-fit variance) %.1f ms\n",
-              points / n, total_ms / n, icp_ms / n, sandwich_ms / n, old_ms / n);
+              "%.1f ms, SGLD the rest; Huber 0.1 m, k = 10, 24 cells CR3, 1.015 (no plane-fit "
+              "variance) %.1f ms\n",
+              points / n, total_ms / n, icp_ms / n, sandwich_ms / n, huber_ms / n);
 }
 
 int Main(int argc, char** argv) {
@@ -912,38 +914,39 @@ int Main(int argc, char** argv) {
   tuned.scale = scale;
   BayesConfig tuned_prior = tuned;
   tuned_prior.prior = true;
-  BayesConfig session3;  // Huber 0.1 m, k = 10, CR3, 24 cells, 1.015, no block tempering
-  session3.cells = 24;
-  session3.scale = 1.015;
-  BayesConfig session4;  // the same with block tempering, 1.049
-  session4.cells = 24;
-  session4.scale = 1.049;
-  session4.block = true;
-  BayesConfig session5;  // library association without gates, CR3, 32 cells, 1.136
-  session5.cells = 32;
-  session5.scale = 1.136;
-  session5.block = true;
-  session5.new_default = true;
-  session5.min_planarity = 0;
-  session5.refine = 0;
-  session5.fov_gate = 0;
-  session5.visibility = 0;
-  BayesConfig session7 = session5;  // planarity 0.1, 48 cells CR1, refine 0.2 m, 1.246
-  session7.fov_gate = 0;
-  session7.visibility = 0;
-  session7.min_planarity = 0.1;
-  session7.leverage_power = 0;
-  session7.cells = 48;
-  session7.refine = 0.2;
-  session7.scale = 1.246;
-  BayesConfig session6 = tuned;  // no view gates, CR1 (leverage 0), 1.262
-  session6.fov_gate = 0;
-  session6.visibility = 0;
-  session6.leverage_power = 0;
-  session6.scale = 1.262;
-  BayesConfig session9 = session6;  // + the field-of-view gate alone, 1.274
-  session9.fov_gate = 1;
-  session9.scale = 1.274;
+  BayesConfig huber_24_cells;  // Huber 0.1 m, k = 10, CR3, 24 cells, 1.015, no block tempering
+  huber_24_cells.cells = 24;
+  huber_24_cells.scale = 1.015;
+  BayesConfig huber_24_cells_block;  // the same with block tempering, 1.049
+  huber_24_cells_block.cells = 24;
+  huber_24_cells_block.scale = 1.049;
+  huber_24_cells_block.block = true;
+  BayesConfig cauchy_32_cells;  // library association without gates, CR3, 32 cells, 1.136
+  cauchy_32_cells.cells = 32;
+  cauchy_32_cells.scale = 1.136;
+  cauchy_32_cells.block = true;
+  cauchy_32_cells.new_default = true;
+  cauchy_32_cells.min_planarity = 0;
+  cauchy_32_cells.refine = 0;
+  cauchy_32_cells.fov_gate = 0;
+  cauchy_32_cells.visibility = 0;
+  // Planarity 0.1, 48 cells CR1, refinement within 0.2 m, no view gates, 1.246.
+  BayesConfig cauchy_48_cells_refine = cauchy_32_cells;
+  cauchy_48_cells_refine.fov_gate = 0;
+  cauchy_48_cells_refine.visibility = 0;
+  cauchy_48_cells_refine.min_planarity = 0.1;
+  cauchy_48_cells_refine.leverage_power = 0;
+  cauchy_48_cells_refine.cells = 48;
+  cauchy_48_cells_refine.refine = 0.2;
+  cauchy_48_cells_refine.scale = 1.246;
+  BayesConfig cauchy_48_cells_cr1 = tuned;  // no view gates, CR1 (leverage 0), 1.262
+  cauchy_48_cells_cr1.fov_gate = 0;
+  cauchy_48_cells_cr1.visibility = 0;
+  cauchy_48_cells_cr1.leverage_power = 0;
+  cauchy_48_cells_cr1.scale = 1.262;
+  BayesConfig cauchy_48_cells_cr1_fov = cauchy_48_cells_cr1;  // + the field-of-view gate, 1.274
+  cauchy_48_cells_cr1_fov.fov_gate = 1;
+  cauchy_48_cells_cr1_fov.scale = 1.274;
   BayesConfig old_a;
   old_a.old_model_a = 3.15;
   BayesConfig iid;  // cells of one point: heteroscedastic i.i.d. residuals, scale 1
@@ -957,15 +960,15 @@ int Main(int argc, char** argv) {
       "cluster sandwich, 24 cells (on top of ICP)",
       "Bayesian ICP, old model A (3.15 x residual sigma)",
       "Bayesian ICP, i.i.d. sandwich sigma (untuned)",
-      "Bayesian ICP, session-3 default (cluster sandwich sigma, 24 cells, 1.015)",
-      "Bayesian ICP, session-4 default (+ block tempering, 1.049; Huber 0.1 m, k = 10)",
-      "Bayesian ICP, session-5 default (Cauchy 0.05 m, k = 20, 32 cells, 1.136)",
-      "Bayesian ICP, session-7 try (+ refinement within 0.2 m, 1.246; not adopted)",
-      "Bayesian ICP, sessions 6-9 default (Cauchy 0.05 m, planarity 0.1, 48 cells CR1, 1.262)",
-      "Bayesian ICP, session-9 try (+ field-of-view gate, 1.274; not adopted)",
+      "Bayesian ICP, Huber 0.1 m, k = 10, cluster sandwich sigma, 24 cells CR3, 1.015",
+      "Bayesian ICP, Huber 0.1 m, k = 10, 24 cells CR3, block tempering, 1.049",
+      "Bayesian ICP, Cauchy 0.05 m, k = 20, no gates, 32 cells CR3, 1.136",
+      "Bayesian ICP, Cauchy 0.05 m, planarity 0.1, 48 cells CR1, refinement within 0.2 m, 1.246",
+      "Bayesian ICP, Cauchy 0.05 m, planarity 0.1, 48 cells CR1, no view gates, 1.262",
+      "Bayesian ICP, Cauchy 0.05 m, planarity 0.1, 48 cells CR1, field-of-view gate, 1.274",
       "Bayesian ICP, new default (configuration line above the table)",
       "Bayesian ICP, new default + prior = init distribution"};
-  const int kNew = 11, kSession3 = 5;
+  const int kNew = 11, kHuber24Cells = 5;
   std::vector<MethodRun> held(kMethods), fresh(kMethods);
   for (size_t i = 0; i < sets.size(); ++i) {
     const std::string& name = sets[i].label;
@@ -976,23 +979,23 @@ int Main(int argc, char** argv) {
     std::vector<double> inflation;
     std::vector<MethodRun> runs = {closed,
                                    censi,
-                                   RunSandwich(sets[i].pairs, session3),
+                                   RunSandwich(sets[i].pairs, huber_24_cells),
                                    RunBayesian(sets[i].pairs, old_a),
                                    RunBayesian(sets[i].pairs, iid),
-                                   RunBayesian(sets[i].pairs, session3),
-                                   RunBayesian(sets[i].pairs, session4),
-                                   RunBayesian(sets[i].pairs, session5),
-                                   RunBayesian(sets[i].pairs, session7),
-                                   RunBayesian(sets[i].pairs, session6),
-                                   RunBayesian(sets[i].pairs, session9),
+                                   RunBayesian(sets[i].pairs, huber_24_cells),
+                                   RunBayesian(sets[i].pairs, huber_24_cells_block),
+                                   RunBayesian(sets[i].pairs, cauchy_32_cells),
+                                   RunBayesian(sets[i].pairs, cauchy_48_cells_refine),
+                                   RunBayesian(sets[i].pairs, cauchy_48_cells_cr1),
+                                   RunBayesian(sets[i].pairs, cauchy_48_cells_cr1_fov),
                                    RunBayesian(sets[i].pairs, tuned, &inflation),
                                    RunBayesian(sets[i].pairs, tuned_prior)};
     icp_only.total_ms /= static_cast<double>(sets[i].pairs.size());
     Row(name, "point-to-plane ICP alone (no covariance)", icp_only);
     for (int m = 0; m < kMethods; ++m) Row(name, names[m], runs[m]);
-    double block_rot = 0, block_trans = 0, s3_rot = 0, s3_trans = 0;
+    double block_rot = 0, block_trans = 0, huber_rot = 0, huber_trans = 0;
     BlockNees(runs[kNew], &block_rot, &block_trans);
-    BlockNees(runs[kSession3], &s3_rot, &s3_trans);
+    BlockNees(runs[kHuber24Cells], &huber_rot, &huber_trans);
     std::vector<double> new_rot, new_trans;
     for (const CovarianceSample& smp : runs[kNew].samples) {
       const Vec6 e = (smp.estimate.Inverse() * smp.truth).Log();
@@ -1002,10 +1005,11 @@ int Main(int argc, char** argv) {
     std::printf("| %s | (ICP (Huber 0.1 m, k = 10) median error %.3f deg / %.1f mm, %zu of %zu "
                 "flagged degenerate; new default: posterior-mean median error %.3f deg / %.1f mm, "
                 "median variance inflation %.1f, rotation / translation block "
-                "mean NEES %.2f / %.2f (session-3 default %.2f / %.2f), ideal 3) | | | | | |\n",
+                "mean NEES %.2f / %.2f (Huber, 24 cells CR3, 1.015: %.2f / %.2f), ideal 3) | | | | "
+                "| |\n",
                 name.c_str(), rot_med, 1e3 * trans_med, degenerate, sets[i].pairs.size(),
                 Median(new_rot), Median(new_trans), Median(inflation), block_rot, block_trans,
-                s3_rot, s3_trans);
+                huber_rot, huber_trans);
     std::fflush(stdout);
     for (int m = 0; m < kMethods; ++m) {
       if (sets[i].role == kHeldOut) held[m] = Concat(held[m], runs[m]);

@@ -24,9 +24,6 @@ class ProgressReporter {
   int64_t done() const { return done_; }
   double ElapsedSeconds() const;
 
-  // For tests: force the plain (non-tty) mode.
-  void SetPlainMode(bool plain) { tty_ = !plain; }
-
  private:
   void Print(bool final_line);
 

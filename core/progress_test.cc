@@ -9,12 +9,12 @@
 namespace lisfm {
 namespace {
 
+// Captured stderr is a file, not a terminal: the reporter is in plain mode.
 TEST(ProgressReporter, PlainModePrintsPeriodicAndFinalLines) {
   SetLogLevel(LogLevel::kInfo);
   testing::internal::CaptureStderr();
   {
     ProgressReporter progress("work", 10, /*min_interval_s=*/0.0);
-    progress.SetPlainMode(true);
     for (int i = 0; i < 10; ++i) progress.Add();
     EXPECT_EQ(progress.done(), 10);
   }  // the destructor finishes

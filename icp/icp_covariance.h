@@ -1,4 +1,4 @@
-// Closed-form ICP covariances and covariance calibration statistics.
+// Closed-form ICP covariances and the cluster-robust sandwich.
 //
 // Both closed forms use the point-to-plane linearisation at the ICP optimum
 // (IcpResult::hessian H = sum w J^T J, xi = [omega; v] on the right, DESIGN.md):
@@ -178,24 +178,5 @@ ClusterSandwich ComputeClusterSandwich(const PointSet& source,
                                        const CorrespondenceVarianceModel* variance_model = nullptr,
                                        std::vector<uint32_t>* matched_target_indices = nullptr,
                                        double leverage_power = 1.0);
-
-// One registration outcome for calibration: estimate, its covariance (right
-// perturbation) and the true transform.
-struct CovarianceSample {
-  SE3 estimate;
-  Mat6 covariance = Mat6::Identity();
-  SE3 truth;
-};
-
-struct CalibrationStats {
-  size_t count = 0;
-  double coverage_95 = 0;  // fraction with NEES <= chi2_6(0.95) = 12.592
-  double mean_nees = 0;    // ideal 6
-  double median_nees = 0;  // ideal chi2_6 median 5.348
-};
-
-// NEES_k = xi^T Sigma^-1 xi with truth = estimate Exp(xi). Throws InputError for an
-// empty set or a covariance that is not positive definite (names the sample).
-CalibrationStats EvaluateCovarianceCalibration(const std::vector<CovarianceSample>& samples);
 
 }  // namespace lisfm

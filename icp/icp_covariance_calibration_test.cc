@@ -9,6 +9,7 @@
 #include "core/errors.h"
 #include "icp/bayesian_icp.h"
 #include "icp/icp_covariance.h"
+#include "icp/testing/covariance_calibration.h"
 #include "icp/testing/sim_pairs.h"
 
 namespace lisfm {
@@ -21,7 +22,7 @@ struct HeldOutRuns {
   std::vector<CovarianceSample> bayes;
   // A baseline on the ICP's association: Huber 0.1 m, normals of 10 neighbours,
   // 24-cell CR3 sandwich sigma x 1.049, block tempering (reported, not asserted).
-  std::vector<CovarianceSample> session4;
+  std::vector<CovarianceSample> huber_24_cells;
   std::vector<CovarianceSample> old_a;   // "old model A": sigma = 3.15 x ICP residual sigma
   std::vector<CovarianceSample> closed;  // sigma^2 H^-1 (Huber, k = 10)
 };
@@ -61,16 +62,16 @@ void RunPairs(const std::string& type, int count, uint32_t seed, HeldOutRuns* ru
     }
     // The baseline models on their own association (Huber 0.1 m, k = 10).
     const KdTreeTarget target10(target_points, NormalOptions{10, 1.0});
-    BayesianIcpOptions s4 = options;
-    s4.icp = IcpOptions();
-    s4.icp.kernel_scale_m = 0.1;
-    s4.noise_sigma_scale = 1.049;
-    s4.num_correlation_cells = 24;
-    s4.jackknife_leverage_power = 1.0;  // CR3
-    const BayesianIcpResult t = RegisterBayesian(source, target10, pairs[k].initial, s4);
-    runs->session4.push_back({t.posterior.mean, t.posterior.covariance, pairs[k].truth});
+    BayesianIcpOptions huber = options;
+    huber.icp = IcpOptions();
+    huber.icp.kernel_scale_m = 0.1;
+    huber.noise_sigma_scale = 1.049;
+    huber.num_correlation_cells = 24;
+    huber.jackknife_leverage_power = 1.0;  // CR3
+    const BayesianIcpResult t = RegisterBayesian(source, target10, pairs[k].initial, huber);
+    runs->huber_24_cells.push_back({t.posterior.mean, t.posterior.covariance, pairs[k].truth});
     runs->closed.push_back({t.icp.target_from_source, ClosedFormCovariance(t.icp), pairs[k].truth});
-    BayesianIcpOptions old = s4;
+    BayesianIcpOptions old = huber;
     old.block_tempering = false;
     old.noise_sigma_m = std::max(1e-6, 3.15 * std::sqrt(t.icp.residual_variance_m2));
     const BayesianIcpResult o = RegisterBayesian(source, target10, pairs[k].initial, old);
@@ -99,11 +100,12 @@ TEST(CovarianceCalibration, BayesianIsCalibratedOnHeldOutScenes) {
   const CalibrationStats b = EvaluateCovarianceCalibration(runs.bayes);
   const CalibrationStats o = EvaluateCovarianceCalibration(runs.old_a);
   const CalibrationStats c = EvaluateCovarianceCalibration(runs.closed);
-  const CalibrationStats s4 = EvaluateCovarianceCalibration(runs.session4);
-  std::printf("%zu held-out pairs: default mean NEES %.2f (coverage %.2f, median %.2f); session-4 "
-              "default %.2f (%.2f); old model A %.2f; closed form %.2f\n",
-              runs.bayes.size(), b.mean_nees, b.coverage_95, b.median_nees, s4.mean_nees, s4.coverage_95, o.mean_nees,
-              c.mean_nees);
+  const CalibrationStats h = EvaluateCovarianceCalibration(runs.huber_24_cells);
+  std::printf("%zu held-out pairs: default mean NEES %.2f (coverage %.2f, median %.2f); "
+              "Huber 0.1 m, k = 10, 24 cells CR3, 1.049 %.2f (%.2f); old model A %.2f; "
+              "closed form %.2f\n",
+              runs.bayes.size(), b.mean_nees, b.coverage_95, b.median_nees, h.mean_nees,
+              h.coverage_95, o.mean_nees, c.mean_nees);
   EXPECT_GT(b.mean_nees, 2.0) << "coverage " << b.coverage_95 << " median " << b.median_nees;
   EXPECT_LT(b.mean_nees, 10.0) << "coverage " << b.coverage_95 << " median " << b.median_nees;
   // The band discriminates: old model A and the closed form miss it on the same

@@ -8,6 +8,7 @@
 #include <unordered_map>
 
 #include "core/errors.h"
+#include "icp/testing/covariance_calibration.h"
 #include "icp/testing/scenes.h"
 #include "tests/common/test_utils.h"
 

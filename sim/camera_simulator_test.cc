@@ -9,6 +9,7 @@
 
 #include "core/io/rig_io.h"
 #include "sim/motion.h"
+#include "sim/texture.h"
 #include "tests/common/test_utils.h"
 
 namespace lisfm {
@@ -90,6 +91,7 @@ TEST_F(CameraSimulatorTest, TextureAppearsWhereOpenCvProjects) {
   const CameraRenderer renderer(*scene_, rig_.cameras[cam].model, TextureOptions(), options_);
   const SE3 world_from_cam = WorldFromCam(cam, t);
   const cv::Mat image = renderer.Render(world_from_cam, 1);
+  const Texture texture{TextureOptions()};
   std::vector<Vec3> points;
   std::vector<double> albedo;
   for (int i = 0; points.size() < 3000 && i < 100000; ++i) {
@@ -101,7 +103,7 @@ TEST_F(CameraSimulatorTest, TextureAppearsWhereOpenCvProjects) {
     if (!hit.hit) continue;
     const Vec3 x = world_from_cam.translation() + hit.distance * (world_from_cam.rotation() * d);
     points.push_back(x);
-    albedo.push_back(Albedo(TextureOptions(), hit.surface_id, x.cast<float>(), hit.normal));
+    albedo.push_back(texture.Albedo(hit.surface_id, x.cast<float>(), TextureAxis(hit.normal)));
   }
   const auto pixels = ProjectOpenCv(cam, world_from_cam, points);
   std::vector<double> a, rendered, shifted;

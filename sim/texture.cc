@@ -254,14 +254,5 @@ Eigen::Vector3f Texture::Tint(uint32_t surface_id) const {
                          0.5f + 0.5f * ToUnit(Hash(h + 1)));
 }
 
-float Albedo(const TextureOptions& options, uint32_t surface_id, const Eigen::Vector3f& p,
-             const Eigen::Vector3f& normal) {
-  return Texture(options).Albedo(surface_id, p, TextureAxis(normal));
-}
-
-Eigen::Vector3f SurfaceTint(const TextureOptions& options, uint32_t surface_id) {
-  return Texture(options).Tint(surface_id);
-}
-
 }  // namespace sim
 }  // namespace lisfm

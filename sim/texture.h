@@ -76,11 +76,5 @@ class Texture {
   const uint8_t* mip_;   // process-lifetime 4x4-averaged tile, row-major
 };
 
-// Convenience wrappers (each call constructs a Texture: fine for tests and a
-// few lookups, use Texture in loops). `normal`: any length or sign.
-float Albedo(const TextureOptions& options, uint32_t surface_id, const Eigen::Vector3f& p,
-             const Eigen::Vector3f& normal);
-Eigen::Vector3f SurfaceTint(const TextureOptions& options, uint32_t surface_id);
-
 }  // namespace sim
 }  // namespace lisfm

@@ -37,8 +37,8 @@ TEST(Texture, ViewConsistentAndInRange) {
     const float a = texture.Albedo(7, p, 2);
     EXPECT_GE(a, 0.03f - 1e-6f);
     EXPECT_LE(a, 0.97f + 1e-6f);
-    EXPECT_EQ(a, Albedo(TextureOptions(), 7, p, Eigen::Vector3f(0, 0, -3)));
-    EXPECT_EQ(a, Albedo(TextureOptions(), 7, p, Eigen::Vector3f(0.1f, -0.2f, 1)));
+    EXPECT_EQ(a, texture.Albedo(7, p, TextureAxis(Eigen::Vector3f(0, 0, -3))));
+    EXPECT_EQ(a, texture.Albedo(7, p, TextureAxis(Eigen::Vector3f(0.1f, -0.2f, 1))));
     EXPECT_EQ(a, texture.Albedo(7, p + Eigen::Vector3f(0, 0, 0.5f), 2));
     sum += a;
     sum2 += a * a;

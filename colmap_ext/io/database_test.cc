@@ -1,29 +1,15 @@
 #include "colmap_ext/io/database.h"
 
 #include <cstring>
-#include <functional>
 
 #include <gtest/gtest.h>
 #include <sqlite3.h>
 
-#include "core/errors.h"
 #include "tests/common/test_utils.h"
 
 namespace lisfm {
 namespace colmap {
 namespace {
-
-void ExpectInputError(const std::function<void()>& f, const std::vector<std::string>& parts) {
-  try {
-    f();
-    ADD_FAILURE() << "expected InputError";
-  } catch (const InputError& e) {
-    for (const auto& p : parts) {
-      EXPECT_NE(std::string(e.what()).find(p), std::string::npos)
-          << "'" << p << "' missing in: " << e.what();
-    }
-  }
-}
 
 void RawExec(const std::string& path, const std::string& sql) {
   sqlite3* db = nullptr;
@@ -169,27 +155,30 @@ TEST(Database, BadFilesAreInputErrorsNamingTheFile) {
   test::TempDir dir;
   const std::string garbage = dir.File("garbage.db");
   test::WriteText(garbage, std::string(4096, 'x'));
-  ExpectInputError([&] { Database(garbage, Database::OpenMode::kReadOnly); },
-                   {garbage, "not a COLMAP database"});
-  ExpectInputError([&] { Database(garbage, Database::OpenMode::kCreate); }, {garbage});
+  EXPECT_TRUE(test::ThrowsInputError([&] { Database(garbage, Database::OpenMode::kReadOnly); },
+                                     {garbage, "not a COLMAP database"}));
+  EXPECT_TRUE(
+      test::ThrowsInputError([&] { Database(garbage, Database::OpenMode::kCreate); }, {garbage}));
   const std::string other = dir.File("other.db");
   RawExec(other, "CREATE TABLE foo(a INTEGER)");
-  ExpectInputError([&] { Database(other, Database::OpenMode::kReadWrite); },
-                   {other, "not a COLMAP database", "foo"});
+  EXPECT_TRUE(test::ThrowsInputError([&] { Database(other, Database::OpenMode::kReadWrite); },
+                                     {other, "not a COLMAP database", "foo"}));
   const std::string old_schema = dir.File("old.db");
   RawExec(old_schema,
           "CREATE TABLE cameras(camera_id INTEGER, model INTEGER, width INTEGER, height "
           "INTEGER, params BLOB, prior_focal_length INTEGER); CREATE TABLE images(image_id "
           "INTEGER, name TEXT, camera_id INTEGER); CREATE TABLE keypoints(image_id INTEGER, "
           "rows INTEGER, data BLOB)");
-  ExpectInputError([&] { Database(old_schema, Database::OpenMode::kReadOnly); },
-                   {old_schema, "table keypoints", "unknown COLMAP schema", "'cols'"});
-  ExpectInputError([&] { Database(dir.File("missing.db"), Database::OpenMode::kReadOnly); },
-                   {dir.File("missing.db")});
+  EXPECT_TRUE(
+      test::ThrowsInputError([&] { Database(old_schema, Database::OpenMode::kReadOnly); },
+                             {old_schema, "table keypoints", "unknown COLMAP schema", "'cols'"}));
+  EXPECT_TRUE(test::ThrowsInputError(
+      [&] { Database(dir.File("missing.db"), Database::OpenMode::kReadOnly); },
+      {dir.File("missing.db")}));
   const std::string empty = dir.File("empty.db");
   test::WriteText(empty, "");
-  ExpectInputError([&] { Database(empty, Database::OpenMode::kReadOnly); },
-                   {empty, "not a COLMAP database"});
+  EXPECT_TRUE(test::ThrowsInputError([&] { Database(empty, Database::OpenMode::kReadOnly); },
+                                     {empty, "not a COLMAP database"}));
 }
 
 TEST(Database, WrongBlobSizesNameTableAndRecord) {
@@ -210,13 +199,15 @@ TEST(Database, WrongBlobSizesNameTableAndRecord) {
           "NULL, NULL, NULL);"
           "UPDATE cameras SET params = zeroblob(24) WHERE camera_id = 1;");
   Database db(path, Database::OpenMode::kReadOnly);
-  ExpectInputError([&] { db.ReadKeypoints(1); },
-                   {path, "table keypoints, image_id 1", "expected 120 bytes", "found 100"});
-  ExpectInputError([&] { db.ReadMatches(1, 2); }, {path, "table matches, pair_id 2147483649"});
-  ExpectInputError([&] { db.ReadAllTwoViewGeometries(); },
-                   {path, "table two_view_geometries", "F blob"});
-  ExpectInputError([&] { db.ReadAllCameras(); },
-                   {path, "table cameras, camera_id 1", "expected 32 bytes"});
+  EXPECT_TRUE(test::ThrowsInputError(
+      [&] { db.ReadKeypoints(1); },
+      {path, "table keypoints, image_id 1", "expected 120 bytes", "found 100"}));
+  EXPECT_TRUE(test::ThrowsInputError([&] { db.ReadMatches(1, 2); },
+                                     {path, "table matches, pair_id 2147483649"}));
+  EXPECT_TRUE(test::ThrowsInputError([&] { db.ReadAllTwoViewGeometries(); },
+                                     {path, "table two_view_geometries", "F blob"}));
+  EXPECT_TRUE(test::ThrowsInputError([&] { db.ReadAllCameras(); },
+                                     {path, "table cameras, camera_id 1", "expected 32 bytes"}));
 }
 
 TEST(Database, ReadsNewerSchemaElements) {

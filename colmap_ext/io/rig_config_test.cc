@@ -47,12 +47,8 @@ TEST(RigConfig, BadInputsAreInputErrors) {
   EXPECT_THROW(RigConfigFromRig(rig, {1, 2}, {}, 2), InputError);
   test::TempDir dir;
   test::WriteText(dir.File("bad.json"), "[{\"cameras\": []}]");
-  try {
-    ReadRigConfigs(dir.File("bad.json"));
-    FAIL() << "expected InputError";
-  } catch (const InputError& e) {
-    EXPECT_NE(std::string(e.what()).find("bad.json:rig 0"), std::string::npos) << e.what();
-  }
+  EXPECT_TRUE(
+      test::ThrowsInputError([&] { ReadRigConfigs(dir.File("bad.json")); }, {"bad.json:rig 0"}));
 }
 
 }  // namespace

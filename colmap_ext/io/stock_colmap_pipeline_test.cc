@@ -9,7 +9,6 @@
 #include "colmap_ext/io/database.h"
 #include "colmap_ext/io/model_io.h"
 #include "colmap_ext/testing/stock_colmap.h"
-#include "colmap_ext/testing/synthetic.h"
 #include "core/file_utils.h"
 #include "tests/common/test_utils.h"
 

@@ -1,13 +1,14 @@
 // End-to-end tests of RunGlobalMapper on synthetic databases with exact
-// ground truth (colmap_ext/sfm_synthetic.h): all stages together.
+// ground truth (colmap_ext/testing/synthetic.h): all stages together.
 #include "colmap_ext/sfm/global_mapper.h"
 
 #include <cmath>
 
 #include <gtest/gtest.h>
 
-#include "colmap_ext/testing/sfm_synthetic.h"
+#include "colmap_ext/testing/synthetic.h"
 #include "core/errors.h"
+#include "core/io/lidar_constraints_io.h"
 #include "core/io/rig_io.h"
 #include "tests/common/test_utils.h"
 
@@ -27,7 +28,8 @@ struct PoseErrors {
 
 // Aligns the model's camera centres to the truth (Sim3 or SE3) and measures
 // per-image rotation and position errors.
-PoseErrors Evaluate(const Reconstruction& model, const SyntheticSfmScene& scene,
+PoseErrors Evaluate(const Reconstruction& model,
+                    const SyntheticDataset& dataset,
                     bool estimate_scale) {
   PoseErrors e;
   std::vector<image_t> ids;
@@ -36,7 +38,7 @@ PoseErrors Evaluate(const Reconstruction& model, const SyntheticSfmScene& scene,
   Eigen::Matrix3Xd source(3, ids.size()), target(3, ids.size());
   for (size_t i = 0; i < ids.size(); ++i) {
     source.col(i) = model.GetImage(ids[i]).ProjectionCenter();
-    target.col(i) = scene.gt_cam_from_world.at(ids[i]).Inverse().translation();
+    target.col(i) = dataset.GetImage(ids[i]).gt_cam_from_world.Inverse().translation();
   }
   const Sim3 world_from_model = AlignUmeyama(source, target, estimate_scale);
   e.scale = world_from_model.scale;
@@ -48,10 +50,22 @@ PoseErrors Evaluate(const Reconstruction& model, const SyntheticSfmScene& scene,
     // Rotation: R_est_aligned = R_est * R_align^T.
     const Quat est = model.GetImage(ids[i]).CamFromWorld().rotation() *
                      world_from_model.pose.rotation().conjugate();
-    const Quat gt = scene.gt_cam_from_world.at(ids[i]).rotation();
+    const Quat gt = dataset.GetImage(ids[i]).gt_cam_from_world.rotation();
     e.max_rotation_deg = std::max(e.max_rotation_deg, so3::AngularDistance(est, gt) * kRadToDeg);
   }
   return e;
+}
+
+// Writes the scene's database into `dir` (db.db) and, with a rig, the rig and
+// LiDAR-constraint files the mapper reads (rig.yaml, constraints.txt).
+SyntheticDataset WriteScene(const SyntheticDatasetOptions& options, const test::TempDir& dir) {
+  SyntheticDataset dataset = SynthesizeDataset(options);
+  WriteSyntheticDatabase(dataset, dir.File("db.db"));
+  if (options.with_rig) {
+    WriteRigYaml(dir.File("rig.yaml"), dataset.rig);
+    WriteLidarConstraints(dataset.constraints, dir.File("constraints.txt"));
+  }
+  return dataset;
 }
 
 // One line per component for failure messages.
@@ -66,8 +80,8 @@ std::string Describe(const GlobalMapperSummary& summary) {
 }
 
 // 24 frames on a ring, 0.5 px noise, 10 % outlier matches and pairs.
-SyntheticSfmOptions RingSceneOptions() {
-  SyntheticSfmOptions o;
+SyntheticDatasetOptions RingSceneOptions() {
+  SyntheticDatasetOptions o;
   o.num_frames = 24;
   o.num_points = 1500;
   o.pixel_noise = 0.5;
@@ -79,12 +93,13 @@ SyntheticSfmOptions RingSceneOptions() {
 
 // A 5-camera rig in a room, with the pose priors and LiDAR constraints a LiDAR
 // stage gives: priors 2 cm / 0.5 deg, constraints 5 mm / 0.1 deg.
-SyntheticSfmOptions RigSceneOptions(const test::TempDir& dir) {
-  SyntheticSfmOptions o;
+SyntheticDatasetOptions RigSceneOptions() {
+  SyntheticDatasetOptions o;
   o.num_frames = 20;
-  o.num_rig_cameras = 5;
+  o.with_rig = true;
+  o.num_cameras = 5;
   o.trajectory = SyntheticTrajectory::kRoom;
-  o.camera_model = "OPENCV_FISHEYE";
+  o.camera_models = {"OPENCV_FISHEYE"};
   o.num_points = 3000;
   o.pixel_noise = 0.5;
   o.max_frame_gap = 3;
@@ -94,23 +109,21 @@ SyntheticSfmOptions RigSceneOptions(const test::TempDir& dir) {
   o.num_lidar_neighbors = 2;
   o.lidar_translation_noise = 0.005;
   o.lidar_rotation_noise = 0.1 * M_PI / 180.0;
-  o.rig_path = dir.File("rig.yaml");
-  o.lidar_constraints_path = dir.File("constraints.txt");
   o.seed = 11;
   return o;
 }
 
 TEST(GlobalMapper, RingWithOutliersRecoversCamerasUpToSimilarity) {
   test::TempDir dir;
-  const SyntheticSfmScene scene = WriteSyntheticSfmDatabase(RingSceneOptions(), dir.File("db.db"));
+  const SyntheticDataset dataset = WriteScene(RingSceneOptions(), dir);
   const Database database(dir.File("db.db"), Database::OpenMode::kReadOnly);
   GlobalMapperOptions options;
   const GlobalMapperResult result = RunGlobalMapper(database, nullptr, {}, "", options);
   ASSERT_EQ(result.models.size(), 1u) << Describe(result.summary);
   const Reconstruction& model = result.models.front();
   model.Validate("global_mapper");
-  EXPECT_EQ(model.NumImages(), scene.gt_cam_from_world.size());
-  const PoseErrors e = Evaluate(model, scene, /*estimate_scale=*/true);
+  EXPECT_EQ(model.NumImages(), dataset.images.size());
+  const PoseErrors e = Evaluate(model, dataset, /*estimate_scale=*/true);
   // 0.5 px noise at f = 350 px over ~1000 points per image: the pose
   // uncertainty is a few thousandths of a degree; 0.05 deg leaves margin
   // while still failing for any mis-registered camera.
@@ -141,11 +154,11 @@ TEST(GlobalMapper, RingWithOutliersRecoversCamerasUpToSimilarity) {
 
 TEST(GlobalMapper, RigWithPriorsAndLidarConstraintsIsMetric) {
   test::TempDir dir;
-  const SyntheticSfmOptions o = RigSceneOptions(dir);
-  const SyntheticSfmScene scene = WriteSyntheticSfmDatabase(o, dir.File("db.db"));
-  const Rig rig = ReadRigYaml(o.rig_path);
+  const SyntheticDatasetOptions o = RigSceneOptions();
+  const SyntheticDataset dataset = WriteScene(o, dir);
+  const Rig rig = ReadRigYaml(dir.File("rig.yaml"));
   const std::vector<LidarConstraintRecord> constraints =
-      ReadLidarConstraints(o.lidar_constraints_path);
+      ReadLidarConstraints(dir.File("constraints.txt"));
   const Database database(dir.File("db.db"), Database::OpenMode::kReadOnly);
   GlobalMapperOptions options;
   options.load.prior_position_sigma = 0.02;
@@ -154,21 +167,21 @@ TEST(GlobalMapper, RigWithPriorsAndLidarConstraintsIsMetric) {
   ASSERT_EQ(result.models.size(), 1u) << Describe(result.summary);
   const Reconstruction& model = result.models.front();
   model.Validate("global_mapper");
-  EXPECT_EQ(model.NumImages(), scene.gt_cam_from_world.size());
+  EXPECT_EQ(model.NumImages(), dataset.images.size());
   EXPECT_EQ(model.Frames().size(), static_cast<size_t>(o.num_frames));
   EXPECT_EQ(model.Rigs().size(), 1u);
   // Accuracy targets after an SE(3) alignment: 0.05 deg, 5 mm.
-  const PoseErrors se3 = Evaluate(model, scene, /*estimate_scale=*/false);
+  const PoseErrors se3 = Evaluate(model, dataset, /*estimate_scale=*/false);
   EXPECT_LT(se3.max_rotation_deg, 0.05);
   EXPECT_LT(se3.max_position, 0.005);
   // Metric: the free Sim3 alignment finds scale 1 within 0.2 %.
-  const PoseErrors sim3 = Evaluate(model, scene, /*estimate_scale=*/true);
+  const PoseErrors sim3 = Evaluate(model, dataset, /*estimate_scale=*/true);
   EXPECT_NEAR(sim3.scale, 1.0, 0.002);
   // Gauge: the priors put the model in their world frame without alignment;
   // 20 frames of 2 cm priors average to well under 2 cm.
   double max_offset = 0.0;
   for (const Image& image : model.Images()) {
-    const Vec3 gt = scene.gt_cam_from_world.at(image.image_id).Inverse().translation();
+    const Vec3 gt = dataset.GetImage(image.image_id).gt_cam_from_world.Inverse().translation();
     max_offset = std::max(max_offset, (image.ProjectionCenter() - gt).norm());
   }
   EXPECT_LT(max_offset, 0.02);
@@ -178,14 +191,14 @@ TEST(GlobalMapper, DisconnectedViewGraphGivesOneModelPerComponent) {
   test::TempDir dir;
   // A forward loop with pairs only between close frames, then the pairs that
   // bridge the two halves are deleted.
-  SyntheticSfmOptions o;
+  SyntheticDatasetOptions o;
   o.num_frames = 16;
   o.trajectory = SyntheticTrajectory::kRoom;
   o.num_points = 2500;
   o.max_frame_gap = 2;
   o.pixel_noise = 0.3;
-  const SyntheticSfmScene scene = WriteSyntheticSfmDatabase(o, dir.File("db.db"));
-  (void)scene;
+  const SyntheticDataset dataset = WriteScene(o, dir);
+  (void)dataset;
   {
     Database database(dir.File("db.db"), Database::OpenMode::kReadWrite);
     // Images 1..16; cut every pair that links {1..8} with {9..16}.
@@ -202,9 +215,9 @@ TEST(GlobalMapper, DisconnectedViewGraphGivesOneModelPerComponent) {
 
 TEST(GlobalMapper, DatabaseWithoutTwoViewGeometriesIsAnInputError) {
   test::TempDir dir;
-  SyntheticSfmOptions o;
+  SyntheticDatasetOptions o;
   o.num_frames = 5;
-  WriteSyntheticSfmDatabase(o, dir.File("db.db"));
+  WriteScene(o, dir);
   {
     Database database(dir.File("db.db"), Database::OpenMode::kReadWrite);
     database.ClearTwoViewGeometries();
@@ -215,9 +228,9 @@ TEST(GlobalMapper, DatabaseWithoutTwoViewGeometriesIsAnInputError) {
 
 TEST(GlobalMapper, CameraWithoutUsableIntrinsicsIsAnInputError) {
   test::TempDir dir;
-  SyntheticSfmOptions o;
+  SyntheticDatasetOptions o;
   o.num_frames = 4;
-  WriteSyntheticSfmDatabase(o, dir.File("db.db"));
+  WriteScene(o, dir);
   {
     Database database(dir.File("db.db"), Database::OpenMode::kReadWrite);
     Camera camera = database.ReadAllCameras().front();
@@ -225,38 +238,30 @@ TEST(GlobalMapper, CameraWithoutUsableIntrinsicsIsAnInputError) {
     database.UpdateCamera(camera);
   }
   const Database database(dir.File("db.db"), Database::OpenMode::kReadOnly);
-  try {
-    RunGlobalMapper(database, nullptr, {}, "", {});
-    FAIL() << "expected an InputError";
-  } catch (const InputError& e) {
-    EXPECT_NE(std::string(e.what()).find("camera_id=1"), std::string::npos) << e.what();
-  }
+  EXPECT_TRUE(test::ThrowsInputError([&] { RunGlobalMapper(database, nullptr, {}, "", {}); },
+                                     {"camera_id=1"}));
 }
 
 TEST(GlobalMapper, RigThatLacksACameraOfTheDatabaseIsAnInputError) {
   test::TempDir dir;
-  SyntheticSfmOptions o;
+  SyntheticDatasetOptions o;
   o.num_frames = 4;
-  o.num_rig_cameras = 3;
+  o.with_rig = true;
+  o.num_cameras = 3;
   o.trajectory = SyntheticTrajectory::kRoom;
-  o.rig_path = dir.File("rig.yaml");
-  WriteSyntheticSfmDatabase(o, dir.File("db.db"));
-  Rig rig = ReadRigYaml(o.rig_path);
+  WriteScene(o, dir);
+  Rig rig = ReadRigYaml(dir.File("rig.yaml"));
   rig.cameras.pop_back();  // images of cam2 now name a camera the rig lacks
   const Database database(dir.File("db.db"), Database::OpenMode::kReadOnly);
-  try {
-    RunGlobalMapper(database, &rig, {}, "", {});
-    FAIL() << "expected an InputError";
-  } catch (const InputError& e) {
-    EXPECT_NE(std::string(e.what()).find("cam2"), std::string::npos) << e.what();
-  }
+  EXPECT_TRUE(
+      test::ThrowsInputError([&] { RunGlobalMapper(database, &rig, {}, "", {}); }, {"cam2"}));
 }
 
 // skip_bundle_adjustment: the poses are those of rotation and translation
 // averaging; the tracks are still triangulated and filtered.
 TEST(GlobalMapper, SkipBundleAdjustmentKeepsTheAveragedPoses) {
   test::TempDir dir;
-  const SyntheticSfmScene scene = WriteSyntheticSfmDatabase(RingSceneOptions(), dir.File("db.db"));
+  const SyntheticDataset dataset = WriteScene(RingSceneOptions(), dir);
   const Database database(dir.File("db.db"), Database::OpenMode::kReadOnly);
   GlobalMapperOptions options;
   options.skip_bundle_adjustment = true;
@@ -271,8 +276,8 @@ TEST(GlobalMapper, SkipBundleAdjustmentKeepsTheAveragedPoses) {
   }
   const Reconstruction& model = result.models.front();
   model.Validate("global_mapper");
-  EXPECT_EQ(model.NumImages(), scene.gt_cam_from_world.size());
-  const PoseErrors e = Evaluate(model, scene, /*estimate_scale=*/true);
+  EXPECT_EQ(model.NumImages(), dataset.images.size());
+  const PoseErrors e = Evaluate(model, dataset, /*estimate_scale=*/true);
   // Rotation and translation averaging alone: 0.052 deg and 6.2 mm (max) on
   // this scene, where the adjusted model stays below 0.05 deg and 5 mm
   // (RingWithOutliersRecoversCamerasUpToSimilarity). The bounds (0.2 deg,
@@ -287,7 +292,7 @@ TEST(GlobalMapper, SkipBundleAdjustmentKeepsTheAveragedPoses) {
 // the final adjustment still reaches the accuracy of the full pipeline.
 TEST(GlobalMapper, SkipRetriangulation) {
   test::TempDir dir;
-  const SyntheticSfmScene scene = WriteSyntheticSfmDatabase(RingSceneOptions(), dir.File("db.db"));
+  const SyntheticDataset dataset = WriteScene(RingSceneOptions(), dir);
   const Database database(dir.File("db.db"), Database::OpenMode::kReadOnly);
   GlobalMapperOptions options;
   options.skip_retriangulation = true;
@@ -300,8 +305,8 @@ TEST(GlobalMapper, SkipRetriangulation) {
   EXPECT_FALSE(c.refinement.front().bundle_adjustment_skipped);
   const Reconstruction& model = result.models.front();
   model.Validate("global_mapper");
-  EXPECT_EQ(model.NumImages(), scene.gt_cam_from_world.size());
-  const PoseErrors e = Evaluate(model, scene, /*estimate_scale=*/true);
+  EXPECT_EQ(model.NumImages(), dataset.images.size());
+  const PoseErrors e = Evaluate(model, dataset, /*estimate_scale=*/true);
   // The same bounds as the full pipeline (RingWithOutliersRecoversCamerasUpToSimilarity).
   EXPECT_LT(e.max_rotation_deg, 0.05);
   EXPECT_LT(e.max_position, 0.005);
@@ -312,11 +317,11 @@ TEST(GlobalMapper, SkipRetriangulation) {
 // in for both averaging stages; bundle adjustment starts from them.
 TEST(GlobalMapper, SkipAveragingStartsFromThePriors) {
   test::TempDir dir;
-  const SyntheticSfmOptions o = RigSceneOptions(dir);
-  const SyntheticSfmScene scene = WriteSyntheticSfmDatabase(o, dir.File("db.db"));
-  const Rig rig = ReadRigYaml(o.rig_path);
+  const SyntheticDatasetOptions o = RigSceneOptions();
+  const SyntheticDataset dataset = WriteScene(o, dir);
+  const Rig rig = ReadRigYaml(dir.File("rig.yaml"));
   const std::vector<LidarConstraintRecord> constraints =
-      ReadLidarConstraints(o.lidar_constraints_path);
+      ReadLidarConstraints(dir.File("constraints.txt"));
   const Database database(dir.File("db.db"), Database::OpenMode::kReadOnly);
   GlobalMapperOptions options;
   options.load.prior_position_sigma = 0.02;
@@ -334,8 +339,8 @@ TEST(GlobalMapper, SkipAveragingStartsFromThePriors) {
   EXPECT_EQ(c.translation_averaging_registered_frames, static_cast<size_t>(o.num_frames));
   const Reconstruction& model = result.models.front();
   model.Validate("global_mapper");
-  EXPECT_EQ(model.NumImages(), scene.gt_cam_from_world.size());
-  const PoseErrors se3 = Evaluate(model, scene, /*estimate_scale=*/false);
+  EXPECT_EQ(model.NumImages(), dataset.images.size());
+  const PoseErrors se3 = Evaluate(model, dataset, /*estimate_scale=*/false);
   // From 2 cm / 0.5 deg priors the adjustment reaches the accuracy of the full
   // pipeline (RigWithPriorsAndLidarConstraintsIsMetric): 0.05 deg, 5 mm.
   EXPECT_LT(se3.max_rotation_deg, 0.05);
@@ -346,7 +351,7 @@ TEST(GlobalMapper, SkipAveragingStartsFromThePriors) {
 // model, and the summary says why.
 TEST(GlobalMapper, SkipRotationAveragingWithoutPriorsGivesNoModel) {
   test::TempDir dir;
-  WriteSyntheticSfmDatabase(RingSceneOptions(), dir.File("db.db"));
+  WriteScene(RingSceneOptions(), dir);
   const Database database(dir.File("db.db"), Database::OpenMode::kReadOnly);
   GlobalMapperOptions options;
   options.skip_rotation_averaging = true;

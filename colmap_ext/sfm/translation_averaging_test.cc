@@ -499,12 +499,8 @@ TEST(AverageTranslations, RejectsBadOptions) {
   TranslationAveragingOptions options;
   options.direction_sigma = 0.0;
   EXPECT_FALSE(options.Check());
-  try {
-    AverageTranslations(options, scene.frame_ids, &scene.state);
-    FAIL() << "expected InputError";
-  } catch (const InputError& e) {
-    EXPECT_NE(std::string(e.what()).find("direction_sigma"), std::string::npos) << e.what();
-  }
+  EXPECT_TRUE(test::ThrowsInputError(
+      [&] { AverageTranslations(options, scene.frame_ids, &scene.state); }, {"direction_sigma"}));
   EXPECT_TRUE(TranslationAveragingOptions().Check());
 }
 

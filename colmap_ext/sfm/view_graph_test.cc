@@ -385,15 +385,8 @@ TEST(ViewGraph, DatabaseWithoutTwoViewGeometriesIsAnInputError) {
   Database database(path, Database::OpenMode::kReadOnly);
   MapperState state =
       LoadMapperState(database, nullptr, LoadMapperStateOptions());
-  try {
-    BuildViewGraph(database, ViewGraphOptions(), &state);
-    FAIL() << "expected InputError";
-  } catch (const InputError& e) {
-    EXPECT_NE(std::string(e.what()).find(path), std::string::npos) << e.what();
-    EXPECT_NE(std::string(e.what()).find("two_view_geometries"),
-              std::string::npos)
-        << e.what();
-  }
+  EXPECT_TRUE(test::ThrowsInputError([&] { BuildViewGraph(database, ViewGraphOptions(), &state); },
+                                     {path, "two_view_geometries"}));
 }
 
 TEST(ViewGraph, MatchBeyondTheKeypointsIsAnInputError) {

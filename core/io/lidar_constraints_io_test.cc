@@ -4,7 +4,6 @@
 #include <string>
 #include <vector>
 
-#include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
 #include "core/errors.h"
@@ -13,8 +12,6 @@
 
 namespace lisfm {
 namespace {
-
-using ::testing::HasSubstr;
 
 Mat6 RandomCovariance() {
   std::normal_distribution<double> normal(0.0, 1e-3);
@@ -228,14 +225,8 @@ TEST(LidarConstraintsIo, MalformedFilesNameFileAndLine) {
     std::string text;
     for (const auto& line : c.lines) text += line + "\n";
     test::WriteText(path, text);
-    try {
-      ReadLidarConstraints(path);
-      ADD_FAILURE() << "no InputError";
-    } catch (const InputError& error) {
-      EXPECT_THAT(error.what(), HasSubstr(path));
-      EXPECT_THAT(error.what(), HasSubstr(c.location));
-      EXPECT_THAT(error.what(), HasSubstr(c.message));
-    }
+    EXPECT_TRUE(
+        test::ThrowsInputError([&] { ReadLidarConstraints(path); }, {path, c.location, c.message}));
   }
 }
 

@@ -298,12 +298,14 @@ TEST(RigIo, KalibrLoaderRemapsAndChecksIndices) {
   EXPECT_TRUE(rig.lidars.empty());
   // Two files claiming cam0.
   test::WriteText(dir.File("other_cam0-camchain-imucam.yaml"), "cam0:\n" + cam);
-  try {
-    LoadKalibrRig({dir.File("k_cam0-camchain-imucam.yaml"), dir.File("other_cam0-camchain-imucam.yaml")}, "");
-    FAIL() << "no exception";
-  } catch (const InputError& e) {
-    EXPECT_THAT(e.what(), HasSubstr("other_cam0-camchain-imucam.yaml:cam0: rig camera cam0 already defined"));
-  }
+  EXPECT_TRUE(test::ThrowsInputError(
+      [&] {
+        LoadKalibrRig(
+            {dir.File("k_cam0-camchain-imucam.yaml"), dir.File("other_cam0-camchain-imucam.yaml")},
+            "");
+      },
+      {"other_cam0-camchain-imucam.yaml:cam0: rig camera cam0 already "
+       "defined"}));
   // The name says two cameras, the file holds one.
   test::WriteText(dir.File("k_cam2-3-camchain-imucam.yaml"), "cam0:\n" + cam);
   EXPECT_THROW(LoadKalibrRig({dir.File("k_cam2-3-camchain-imucam.yaml")}, ""), InputError);
@@ -312,22 +314,16 @@ TEST(RigIo, KalibrLoaderRemapsAndChecksIndices) {
   // Errors inside a Kalibr file name the in-file section.
   test::WriteText(dir.File("bad_cam0-camchain-imucam.yaml"),
                   "cam0:\n" + Replace(cam, "[720, 540]", "[720, x]"));
-  try {
-    LoadKalibrRig({dir.File("bad_cam0-camchain-imucam.yaml")}, "");
-    FAIL() << "no exception";
-  } catch (const InputError& e) {
-    EXPECT_THAT(e.what(), HasSubstr("bad_cam0-camchain-imucam.yaml:cam0.resolution[1]: expected an integer"));
-  }
+  EXPECT_TRUE(test::ThrowsInputError(
+      [&] { LoadKalibrRig({dir.File("bad_cam0-camchain-imucam.yaml")}, ""); },
+      {"bad_cam0-camchain-imucam.yaml:cam0.resolution[1]: expected an "
+       "integer"}));
   // A LiDAR calibration whose LiDAR is not relative to the IMU.
   test::WriteText(dir.File("lidar.yaml"),
                   "sensors:\n  PandarXT-32:\n    parent: base_link\n    extrinsics:\n"
                   "      quaternion: [0, 0, 0, 1]\n      translation: [0, 0, 0]\n");
-  try {
-    ReadLidarCalibration(dir.File("lidar.yaml"));
-    FAIL() << "no exception";
-  } catch (const InputError& e) {
-    EXPECT_THAT(e.what(), HasSubstr("lidar.yaml:sensors.PandarXT-32.parent: expected 'imu'"));
-  }
+  EXPECT_TRUE(test::ThrowsInputError([&] { ReadLidarCalibration(dir.File("lidar.yaml")); },
+                                     {"lidar.yaml:sensors.PandarXT-32.parent: expected 'imu'"}));
 }
 
 // Reads a 4x4 Kalibr matrix straight with yaml-cpp (independent of rig_io).

@@ -1,5 +1,6 @@
 #include "tests/common/test_utils.h"
 
+#include <cxxabi.h>
 #include <sys/wait.h>
 
 #include <array>
@@ -7,6 +8,9 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <typeinfo>
+
+#include "core/errors.h"
 
 namespace lisfm {
 namespace test {
@@ -104,6 +108,34 @@ SE3 RandomPose(double max_angle_rad, double max_translation) {
          << " m (max " << max_translation << ")\n  a: q=" << a.rotation().coeffs().transpose()
          << " t=" << a.translation().transpose() << "\n  b: q=" << b.rotation().coeffs().transpose()
          << " t=" << b.translation().transpose();
+}
+
+::testing::AssertionResult ThrowsInputError(const std::function<void()>& f,
+                                            const std::vector<std::string>& fragments) {
+  try {
+    f();
+  } catch (const InputError& e) {
+    const std::string message = e.what();
+    std::string missing;
+    for (const std::string& fragment : fragments) {
+      if (message.find(fragment) == std::string::npos) missing += " \"" + fragment + "\"";
+    }
+    if (missing.empty()) return ::testing::AssertionSuccess();
+    return ::testing::AssertionFailure()
+           << "the InputError message lacks" << missing << "\n  message: " << message;
+  } catch (const std::exception& e) {
+    int status = 0;
+    char* name = abi::__cxa_demangle(typeid(e).name(), nullptr, nullptr, &status);
+    const std::string type = status == 0 && name != nullptr ? name : typeid(e).name();
+    std::free(name);
+    return ::testing::AssertionFailure()
+           << "expected lisfm::InputError, got " << type << ": " << e.what();
+  } catch (...) {
+    return ::testing::AssertionFailure()
+           << "expected lisfm::InputError, got an exception not derived from "
+              "std::exception";
+  }
+  return ::testing::AssertionFailure() << "expected lisfm::InputError, nothing was thrown";
 }
 
 }  // namespace test

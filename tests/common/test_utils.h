@@ -1,10 +1,12 @@
 // Test helpers: temporary folders, data paths, a fixed-seed RNG, numeric
-// Jacobians and pose comparisons. Header for tests only.
+// Jacobians, pose comparisons and the input-error expectation. Header for
+// tests only.
 #pragma once
 
 #include <functional>
 #include <random>
 #include <string>
+#include <vector>
 
 #include <gtest/gtest.h>
 
@@ -55,6 +57,15 @@ SE3 RandomPose(double max_angle_rad = 3.0, double max_translation = 5.0);
                                      const SE3& b,
                                      double max_angle_rad,
                                      double max_translation);
+
+// Runs `f` and succeeds when it throws lisfm::InputError whose message
+// contains every fragment (the file, the line or record, expected / found);
+// empty fragments match anything. Fails with the message and the missing
+// fragments, or with what was thrown instead (another exception, or nothing).
+// Use as EXPECT_TRUE(test::ThrowsInputError([&] { ReadTum(path); },
+//                                           {path, "line 2", "found 7"})).
+::testing::AssertionResult ThrowsInputError(const std::function<void()>& f,
+                                            const std::vector<std::string>& fragments = {});
 
 }  // namespace test
 }  // namespace lisfm

@@ -18,10 +18,15 @@ int Lisfm(const std::string& args, std::string* out) {
 
 TEST(ColmapCommands, ModelConverterRoundTripsBinTxtBinAndWritesPly) {
   test::TempDir dir;
-  SyntheticModelOptions options;
-  options.num_images = 6;
+  SyntheticDatasetOptions options;
+  options.num_frames = 6;
+  options.num_cameras = 2;
+  options.camera_models = {"PINHOLE", "OPENCV_FISHEYE"};
   options.num_points = 80;
-  const Reconstruction model = SynthesizeModel(options);
+  options.track_length = 3;
+  options.pixel_noise = 0.5;
+  options.num_random_keypoints = 5;
+  const Reconstruction model = SyntheticReconstruction(SynthesizeDataset(options));
   WriteModelBinary(model, dir.File("bin"));
   std::string out;
   ASSERT_EQ(Lisfm("model_converter --input_path " + dir.File("bin") + " --output_path " +

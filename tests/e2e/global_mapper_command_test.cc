@@ -9,9 +9,11 @@
 
 #include "colmap_ext/io/model_io.h"
 #include "colmap_ext/sfm/sfm_evaluation.h"
-#include "colmap_ext/testing/sfm_synthetic.h"
 #include "colmap_ext/testing/stock_colmap.h"
+#include "colmap_ext/testing/synthetic.h"
 #include "core/file_utils.h"
+#include "core/io/lidar_constraints_io.h"
+#include "core/io/rig_io.h"
 #include "tests/common/test_utils.h"
 
 namespace lisfm {
@@ -27,23 +29,25 @@ std::string Lisfm(const std::string& args, int* rc) {
 TEST(GlobalMapperCommand, SyntheticRigModelOpensInStockColmap) {
   REQUIRE_COLMAP();
   test::TempDir dir;
-  SyntheticSfmOptions o;
+  SyntheticDatasetOptions o;
   o.num_frames = 8;
-  o.num_rig_cameras = 3;
+  o.with_rig = true;
+  o.num_cameras = 3;
   o.trajectory = SyntheticTrajectory::kRoom;
   o.num_points = 1500;
   o.pixel_noise = 0.5;
   o.prior_position_noise = 0.02;
   o.prior_rotation_noise = 0.005;
   o.num_lidar_neighbors = 1;
-  o.rig_path = dir.File("rig.yaml");
-  o.lidar_constraints_path = dir.File("constraints.txt");
-  WriteSyntheticSfmDatabase(o, dir.File("db.db"));
+  const SyntheticDataset dataset = SynthesizeDataset(o);
+  WriteSyntheticDatabase(dataset, dir.File("db.db"));
+  WriteRigYaml(dir.File("rig.yaml"), dataset.rig);
+  WriteLidarConstraints(dataset.constraints, dir.File("constraints.txt"));
   int rc = 0;
   const std::string out =
       Lisfm("global_mapper --database_path " + dir.File("db.db") + " --output_path " +
-                dir.File("sparse") + " --rig_path " + o.rig_path +
-                " --lidar_constraints_path " + o.lidar_constraints_path,
+                dir.File("sparse") + " --rig_path " + dir.File("rig.yaml") +
+                " --lidar_constraints_path " + dir.File("constraints.txt"),
             &rc);
   ASSERT_EQ(rc, 0) << out;
   EXPECT_TRUE(FileExists(dir.File("sparse/0/cameras.bin")));
@@ -61,9 +65,9 @@ TEST(GlobalMapperCommand, SyntheticRigModelOpensInStockColmap) {
 
 TEST(GlobalMapperCommand, BadInputsFailCleanly) {
   test::TempDir dir;
-  SyntheticSfmOptions o;
+  SyntheticDatasetOptions o;
   o.num_frames = 5;
-  WriteSyntheticSfmDatabase(o, dir.File("db.db"));
+  WriteSyntheticDatabase(SynthesizeDataset(o), dir.File("db.db"));
   int rc = 0;
   // Missing database.
   std::string out = Lisfm("global_mapper --database_path " + dir.File("none.db") +

@@ -20,12 +20,15 @@ using namespace test_stock;  // NOLINT
 TEST(StockColmap, ModelAnalyzerAndConverterAgreeOnOurModel) {
   REQUIRE_COLMAP();
   test::TempDir dir;
-  SyntheticModelOptions options;
-  options.num_cameras = 3;  // PINHOLE, OPENCV_FISHEYE, OPENCV
-  options.num_images = 12;
+  SyntheticDatasetOptions options;
+  options.num_frames = 12;
+  options.num_cameras = 3;
+  options.camera_models = {"PINHOLE", "OPENCV_FISHEYE", "OPENCV"};
   options.num_points = 400;
   options.track_length = 4;
-  const Reconstruction model = SynthesizeModel(options);
+  options.pixel_noise = 0.5;
+  options.num_random_keypoints = 5;
+  const Reconstruction model = SyntheticReconstruction(SynthesizeDataset(options));
   WriteModelBinary(model, dir.File("ours"));
 
   // Same counts and mean reprojection error from stock COLMAP, from our
