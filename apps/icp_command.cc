@@ -7,6 +7,7 @@
 #include <iomanip>
 #include <iostream>
 #include <memory>
+#include <optional>
 #include <sstream>
 
 #include <fmt/format.h>
@@ -80,6 +81,7 @@ int RunIcp(int argc, char** argv) {
   IcpOptions icp;
   BayesianIcpOptions bayes;  // its association (kernel, normals) defaults differ: see below
   int seed = 1;
+  bool overwrite = false;
   options.AddRequiredString("source_path", &source_path, "source cloud (.pcd/.ply)");
   options.AddRequiredString("target_path", &target_path, "target cloud (.pcd/.ply)");
   options.AddString("init_path", &init_path,
@@ -87,6 +89,7 @@ int RunIcp(int argc, char** argv) {
   options.AddChoice("method", &method, {"point_to_plane", "bayesian"}, "registration method");
   options.AddString("output_path", &output_path,
                     "folder for T_target_source.txt, covariance.txt, result.yaml and config.yaml (optional)");
+  options.AddBool("overwrite", &overwrite, "replace an earlier lisfm output at --output_path");
   options.AddDouble("Icp.source_voxel_size", &source_voxel_m, "source voxel downsampling (m, 0 = off)");
   options.AddDouble("Icp.target_voxel_size", &target_voxel_m, "target voxel downsampling (m, 0 = off)");
   options.AddInt("Icp.normal_neighbors", &normal_options.num_neighbors, "k of the PCA normals");
@@ -152,6 +155,8 @@ int RunIcp(int argc, char** argv) {
   options.AddDouble("Bayesian.prior_sigma_translation", &bayes.prior_sigma_translation_m,
                     "Gaussian prior on the pose around --init_path, translation sigma (m; 0 = flat)");
   if (!options.Parse(argc, argv)) return 0;
+  std::optional<OutputFolder> output;  // checked before the work
+  if (!output_path.empty()) output.emplace(output_path, overwrite);
   bayes.sgld.seed = static_cast<uint64_t>(seed);
   NormalOptions target_normals = normal_options;
   if (method == "bayesian") {
@@ -239,18 +244,17 @@ int RunIcp(int argc, char** argv) {
     std::cout << "WARNING: not converged: " << result.message << "\n";
   }
   std::cout.flush();
-  if (!output_path.empty()) {
-    // Each file appears atomically (temporary name + rename).
-    CreateDirs(output_path);
-    WriteFileAtomically(output_path + "/T_target_source.txt", transform_text);
-    WriteFileAtomically(output_path + "/covariance.txt", covariance_text);
+  if (output) {
+    WriteFileAtomically(output->File("T_target_source.txt"), transform_text);
+    WriteFileAtomically(output->File("covariance.txt"), covariance_text);
     WriteFileAtomically(
-        output_path + "/result.yaml",
+        output->File("result.yaml"),
         fmt::format("method: {}\nconverged: {}\ndegenerate: {}\niterations: {}\ninliers: {}\n"
                     "rmse_m: {:.9g}\ncovariance: \"{}\"\nmessage: \"{}\"\n",
                     method, result.converged, result.degenerate, result.iterations,
                     result.num_inliers, result.rmse_m, covariance_kind, result.message));
-    options.WriteConfig(output_path + "/config.yaml");
+    options.WriteConfig(output->File("config.yaml"));
+    output->Commit();
   }
   LogInfo("icp ({}): {} source / {} target points after downsampling ({} / {} loaded), {} "
           "inliers, RMSE {:.4f} m, {} iterations, {}{}; load {:.3f} s, preprocess {:.3f} s, "
