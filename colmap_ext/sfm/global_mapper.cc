@@ -268,7 +268,17 @@ GlobalMapperResult RunGlobalMapper(const Database& database, const Rig* rig,
   for (size_t c = 0; c < components.size(); ++c) {
     const std::vector<frame_t>& frame_ids = components[c];
     if (static_cast<int>(frame_ids.size()) < options.min_component_frames) continue;
-    if (!options.reconstruct_all_components && !result.models.empty()) break;
+    if (!options.reconstruct_all_components && !result.models.empty()) {
+      std::vector<frame_t> skipped;
+      for (size_t k = c; k < components.size(); ++k) {
+        if (static_cast<int>(components[k].size()) < options.min_component_frames) continue;
+        skipped.insert(skipped.end(), components[k].begin(), components[k].end());
+      }
+      LogWarning("global_mapper: {} frame(s) of smaller components not reconstructed "
+                 "(Mapper.reconstruct_all_components = 0): {}",
+                 skipped.size(), FrameNames(base, skipped));
+      break;
+    }
     nlohmann::json comp;
     comp["frames"] = frame_ids.size();
     MapperState state = base;  // the stages register only this component's frames
