@@ -191,12 +191,13 @@ std::string Join(const std::vector<std::string>& v) {
 Database::Database(const std::string& path, OpenMode mode) : path_(path) {
   read_only_ = mode == OpenMode::kReadOnly;
   if (mode != OpenMode::kCreate) CheckFileExists(path, "database");
-  // Reading a WAL-mode database (journal_mode=WAL, as COLMAP >= 3.9 leaves
-  // it) creates `-wal` and `-shm` files beside it, and only a connection that
-  // may write removes them when the last one closes. So a read-only Database
-  // on a writable file uses a read-write connection that refuses every write
-  // (PRAGMA query_only): the files disappear on close as with any writer. A
-  // file we may not write is opened read-only (SQLite may then leave them).
+  // Reading a WAL-mode database (journal_mode=WAL, as stock COLMAP 3.8 leaves
+  // the databases it writes) creates `-wal` and `-shm` files beside it, and
+  // only a connection that may write removes them when the last one closes.
+  // So a read-only Database on a writable file uses a read-write connection
+  // that refuses every write (PRAGMA query_only): the files disappear on close
+  // as with any writer. A file we may not write is opened read-only (SQLite
+  // may then leave them).
   const bool query_only = read_only_ && ::access(path.c_str(), W_OK) == 0;
   int flags = read_only_ && !query_only ? SQLITE_OPEN_READONLY : SQLITE_OPEN_READWRITE;
   if (mode == OpenMode::kCreate) flags |= SQLITE_OPEN_CREATE;

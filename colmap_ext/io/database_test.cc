@@ -220,7 +220,7 @@ TEST(Database, WrongBlobSizesNameTableAndRecord) {
                    {path, "table cameras, camera_id 1", "expected 32 bytes"});
 }
 
-// COLMAP >= 3.9 leaves databases in WAL mode; reading one must not leave
+// Stock COLMAP leaves its databases in WAL mode; reading one must not leave
 // `-wal` / `-shm` files beside it, nor change its content.
 TEST(Database, ReadingAWalDatabaseLeavesNoSideFiles) {
   test::TempDir dir;
