@@ -3,6 +3,7 @@
 #include <chrono>
 #include <cstdio>
 #include <iostream>
+#include <optional>
 #include <string>
 
 #include "apps/commands.h"
@@ -30,6 +31,7 @@ std::string Printf(const char* format, double value) {
 
 int RunModelConverter(int argc, char** argv) {
   std::string input_path, output_path, output_type = "BIN";
+  bool overwrite = false;
   OptionManager options("lisfm model_converter",
                         "convert a COLMAP sparse model (BIN or TXT folder) to BIN, TXT or PLY");
   options.AddRequiredString("input_path", &input_path, "model folder (.bin or .txt files)");
@@ -37,18 +39,28 @@ int RunModelConverter(int argc, char** argv) {
                             "output folder (BIN, TXT) or .ply file (PLY)");
   options.AddChoice("output_type", &output_type, {"BIN", "TXT", "PLY", "bin", "txt", "ply"},
                     "output format");
+  options.AddBool("overwrite", &overwrite,
+                  "replace an earlier lisfm output folder at --output_path (BIN, TXT)");
   if (!options.Parse(argc, argv)) return 0;
+  std::string type = output_type;
+  for (char& c : type) c = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
+  // Checked before the work: a folder for BIN/TXT, a writable file for PLY.
+  std::optional<OutputFolder> output;
+  if (type == "PLY") {
+    CheckOutputFileWritable(output_path, "--output_path");
+  } else {
+    output.emplace(output_path, overwrite);
+  }
   const auto start = std::chrono::steady_clock::now();
   colmap::ModelFormat input_format;
   const colmap::Reconstruction model = colmap::ReadModel(input_path, &input_format);
   const double read_s = SecondsSince(start);
-  std::string type = output_type;
-  for (char& c : type) c = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
   if (type == "PLY") {
     colmap::WritePly(model, output_path);
   } else {
-    colmap::WriteModel(model, output_path,
+    colmap::WriteModel(model, output->path(),
                        type == "BIN" ? colmap::ModelFormat::kBinary : colmap::ModelFormat::kText);
+    output->Commit();
   }
   LogInfo("model_converter: read {} model ({} cameras, {} images, {} points, {} observations) "
           "from {} in {:.3f} s; wrote {} to {} in {:.3f} s.",

@@ -19,6 +19,7 @@
 #include <cmath>
 #include <iostream>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -104,6 +105,15 @@ std::string StatsHeader() {
       std::string(e.what()) + " (reference " + reference_path + ")");
 }
 
+// The alignment's rotation conditioning (core/evaluation.h AlignmentConditioning).
+json ConditioningToJson(const TrajectoryEvaluation& ev) {
+  const AlignmentConditioning& c = ev.alignment_conditioning;
+  return json{{"rotation_sigma_deg", Number(c.rotation_sigma_rad * 180.0 / M_PI)},
+              {"weak_axis", {c.weak_axis.x(), c.weak_axis.y(), c.weak_axis.z()}},
+              {"position_sigma_m", c.position_sigma_m},
+              {"rotation_ate_dominated_by_alignment", c.rotation_dominated}};
+}
+
 struct Outputs {
   json metrics;
   TrajectoryPlotData plot;
@@ -170,6 +180,7 @@ Outputs EvaluateAgainstTrajectory(const std::string& reference_path,
       {"ate",
        {{"translation_m", StatsToJson(ev.ate_translation_m)},
         {"rotation_deg", StatsToJson(ev.ate_rotation_deg)}}},
+      {"alignment_conditioning", ConditioningToJson(ev)},
       {"rpe",
        {{"per_frame",
          {{"translation_m", StatsToJson(ev.rpe_translation_m)},
@@ -177,6 +188,17 @@ Outputs EvaluateAgainstTrajectory(const std::string& reference_path,
         {"distance", windows}}},
   };
 
+  const AlignmentConditioning& conditioning = ev.alignment_conditioning;
+  if (conditioning.rotation_dominated) {
+    const Vec3& axis = conditioning.weak_axis;
+    LogWarning(
+        "evaluate: the rotation ATE ({:.4f} deg rmse) is dominated by the {} alignment: the "
+        "positions fix its rotation only to {:.4f} deg (1 sigma) about the axis [{:.2f} {:.2f} "
+        "{:.2f}] (a short or nearly straight path); judge rotations by the RPE or with --alignment "
+        "none",
+        ev.ate_rotation_deg.rmse, AlignmentTypeName(ev.alignment),
+        conditioning.rotation_sigma_rad * 180.0 / M_PI, axis.x(), axis.y(), axis.z());
+  }
   for (const auto& p : reference.poses())
     out.plot.reference.push_back(p.pose.translation());
   for (const auto& p : estimate.poses()) {
@@ -337,6 +359,7 @@ int RunEvaluate(int argc, char** argv) {
   std::string output_path;
   TrajectoryEvaluationOptions eval;
   HiltiScoreOptions hilti;
+  bool overwrite = false;
   options.AddRequiredString(
       "reference_path",
       &reference_path,
@@ -362,11 +385,18 @@ int RunEvaluate(int argc, char** argv) {
       "output_path",
       &output_path,
       "folder for metrics.json and evaluation.png (created; optional)");
+  options.AddBool("overwrite", &overwrite, "replace an earlier lisfm output at --output_path");
   if (!options.Parse(argc, argv)) return 0;
+  std::optional<OutputFolder> output;  // checked before the work
+  if (!output_path.empty()) output.emplace(output_path, overwrite);
 
   const bool control_points = reference_type == "control_points";
   if (control_points && !options.IsSet("max_dt"))
     max_dt_s = kDefaultControlPointMaxDtS;
+  if (!IsRepresentableAsNs(max_dt_s)) {
+    throw UsageError(fmt::format(
+        "--max_dt {} is out of range: must be < {:.0f} s", max_dt_s, kMaxAbsSecondsAsNs));
+  }
   if (control_points && eval.alignment != AlignmentType::kSE3) {
     LogWarning(
         "the HILTI 2022 score always uses SE(3) alignment without scale; "
@@ -394,20 +424,18 @@ int RunEvaluate(int argc, char** argv) {
   }
 
   std::string written;
-  if (!output_path.empty()) {
-    CreateDirs(output_path);
+  if (output) {
     out.metrics["reference"] = reference_path;
     out.metrics["estimate"] = estimate_path;
     out.metrics["max_dt_s"] = max_dt_s;
-    const std::string metrics_path = JoinPaths(output_path, "metrics.json");
-    const std::string plot_path = JoinPaths(output_path, "evaluation.png");
-    const std::string config_path =
-        JoinPaths(output_path, "evaluate_config.yaml");
-    WriteFileAtomically(metrics_path, out.metrics.dump(2) + "\n");
-    WriteTrajectoryPlot(plot_path, out.plot);
-    options.WriteConfig(config_path);
-    written = fmt::format(
-        "; wrote {}, {} and {}", metrics_path, plot_path, config_path);
+    WriteFileAtomically(output->File("metrics.json"), out.metrics.dump(2) + "\n");
+    WriteTrajectoryPlot(output->File("evaluation.png"), out.plot);
+    options.WriteConfig(output->File("evaluate_config.yaml"));
+    output->Commit();
+    written = fmt::format("; wrote {}, {} and {}",
+                          JoinPaths(output_path, "metrics.json"),
+                          JoinPaths(output_path, "evaluation.png"),
+                          JoinPaths(output_path, "evaluate_config.yaml"));
   }
   const double seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start)

@@ -1,6 +1,5 @@
 // `lisfm global_mapper`: global SfM on a COLMAP database (colmap_ext/global_mapper.h).
 #include <chrono>
-#include <filesystem>
 #include <memory>
 #include <string>
 
@@ -25,6 +24,7 @@ int RunGlobalMapper(int argc, char** argv) {
   std::string database_path, image_path, output_path, rig_path, constraints_path;
   std::string output_type = "BIN";
   int num_threads = -1;
+  bool overwrite = false;
   colmap::GlobalMapperOptions mapper;
   OptionManager options(
       "lisfm global_mapper",
@@ -37,6 +37,7 @@ int RunGlobalMapper(int argc, char** argv) {
                     "image folder (image names are relative to it); used for point colours");
   options.AddRequiredString("output_path", &output_path,
                             "output folder: one model per connected component in OUT/0, OUT/1, ...");
+  options.AddBool("overwrite", &overwrite, "replace an earlier lisfm output at --output_path");
   options.AddString("rig_path", &rig_path,
                     "rig YAML (or a HILTI calibration folder); images camK/data/<ns>.png with "
                     "the same <ns> form one rig frame");
@@ -52,6 +53,8 @@ int RunGlobalMapper(int argc, char** argv) {
   mapper.triangulation.num_threads = num_threads;
   mapper.bundle_adjustment.num_threads = num_threads;
   options.ThrowUnlessValid(mapper.Check());
+
+  OutputFolder output(output_path, overwrite);  // checked before the work
 
   const auto start = std::chrono::steady_clock::now();
   CheckFileExists(database_path, "database");
@@ -72,34 +75,19 @@ int RunGlobalMapper(int argc, char** argv) {
   const double mapping_s =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 
-  // Outputs: each model into a temporary folder, then renamed into place.
-  CreateDirs(output_path);
+  // Outputs: one model per component, in the output's temporary folder.
   const colmap::ModelFormat format =
       output_type == "TXT" ? colmap::ModelFormat::kText : colmap::ModelFormat::kBinary;
   for (size_t k = 0; k < result.models.size(); ++k) {
-    const std::string final_dir = JoinPaths(output_path, std::to_string(k));
-    const std::string tmp_dir = final_dir + ".tmp";
-    std::error_code ec;
-    std::filesystem::remove_all(tmp_dir, ec);
-    CreateDirs(tmp_dir);
-    colmap::WriteModel(result.models[k], tmp_dir, format);
-    std::filesystem::remove_all(final_dir, ec);
-    std::filesystem::rename(tmp_dir, final_dir, ec);
-    if (ec) throw InputError(final_dir, "", "cannot move the model into place: " + ec.message());
-  }
-  // Stale models of an earlier run with more components would look like part of this one.
-  for (size_t k = result.models.size();; ++k) {
-    const std::string stale = JoinPaths(output_path, std::to_string(k));
-    if (!DirExists(stale)) break;
-    std::error_code ec;
-    std::filesystem::remove_all(stale, ec);
-    LogWarning("global_mapper: removed the stale model {} of an earlier run", stale);
+    const std::string dir = output.File(std::to_string(k));
+    CreateDirs(dir);
+    colmap::WriteModel(result.models[k], dir, format);
   }
   nlohmann::json summary = GlobalMapperSummaryToJson(result.summary);
   summary["mapping_seconds_including_io"] = mapping_s;
-  WriteFileAtomically(JoinPaths(output_path, "global_mapper_summary.json"),
-                      summary.dump(2) + "\n");
-  options.WriteConfig(JoinPaths(output_path, "global_mapper_config.yaml"));
+  WriteFileAtomically(output.File("global_mapper_summary.json"), summary.dump(2) + "\n");
+  options.WriteConfig(output.File("global_mapper_config.yaml"));
+  output.Commit();
 
   size_t images = 0, points = 0, observations = 0;
   double error = 0.0;

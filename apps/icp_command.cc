@@ -7,6 +7,7 @@
 #include <iomanip>
 #include <iostream>
 #include <memory>
+#include <optional>
 #include <sstream>
 
 #include <fmt/format.h>
@@ -80,6 +81,7 @@ int RunIcp(int argc, char** argv) {
   NormalOptions normal_options;
   IcpOptions icp;
   BayesianIcpOptions bayes;  // its association (kernel, normals) defaults differ: see below
+  bool overwrite = false;
   options.AddRequiredString("source_path", &source_path, "source cloud (.pcd/.ply)");
   options.AddRequiredString("target_path", &target_path, "target cloud (.pcd/.ply)");
   options.AddString("init_path", &init_path,
@@ -94,7 +96,10 @@ int RunIcp(int argc, char** argv) {
   AddNormalOptions(&options, &normal_options);
   AddIcpOptions(&options, &icp);
   AddBayesianIcpOptions(&options, &bayes);
+  options.AddBool("overwrite", &overwrite, "replace an earlier lisfm output at --output_path");
   if (!options.Parse(argc, argv)) return 0;
+  std::optional<OutputFolder> output;  // checked before the work
+  if (!output_path.empty()) output.emplace(output_path, overwrite);
   NormalOptions target_normals = normal_options;
   if (method == "bayesian") {
     // The calibrated association of Bayesian ICP (BayesianIcpOptions): the Icp.*
@@ -176,18 +181,17 @@ int RunIcp(int argc, char** argv) {
     std::cout << "WARNING: not converged: " << result.message << "\n";
   }
   std::cout.flush();
-  if (!output_path.empty()) {
-    // Each file appears atomically (temporary name + rename).
-    CreateDirs(output_path);
-    WriteFileAtomically(output_path + "/T_target_source.txt", transform_text);
-    WriteFileAtomically(output_path + "/covariance.txt", covariance_text);
+  if (output) {
+    WriteFileAtomically(output->File("T_target_source.txt"), transform_text);
+    WriteFileAtomically(output->File("covariance.txt"), covariance_text);
     WriteFileAtomically(
-        output_path + "/result.yaml",
+        output->File("result.yaml"),
         fmt::format("method: {}\nconverged: {}\ndegenerate: {}\niterations: {}\ninliers: {}\n"
                     "rmse_m: {:.9g}\ncovariance: \"{}\"\nmessage: \"{}\"\n",
                     method, result.converged, result.degenerate, result.iterations,
                     result.num_inliers, result.rmse_m, covariance_kind, result.message));
-    options.WriteConfig(output_path + "/config.yaml");
+    options.WriteConfig(output->File("config.yaml"));
+    output->Commit();
   }
   LogInfo("icp ({}): {} source / {} target points after downsampling ({} / {} loaded), {} "
           "inliers, RMSE {:.4f} m, {} iterations, {}{}; load {:.3f} s, preprocess {:.3f} s, "

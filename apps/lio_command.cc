@@ -1,7 +1,6 @@
 // `lisfm lio`: FAST-LIO2-style LiDAR-inertial odometry on a sequence folder.
 #include <algorithm>
 #include <chrono>
-#include <filesystem>
 #include <fstream>
 #include <sstream>
 #include <map>
@@ -62,6 +61,7 @@ int RunLio(int argc, char** argv) {
   std::string input_path, output_path, lidars = "all", method = "iekf";
   int max_scans = 0;
   bool write_keyframes = true;
+  bool overwrite = false;
   double map_voxel = 0.2;
   LioOptions lio;
   OptionManager options("lisfm lio",
@@ -69,6 +69,7 @@ int RunLio(int argc, char** argv) {
                         "sequence folder; writes trajectory.txt, keyframes/, map.pcd, scans.csv");
   options.AddRequiredString("input_path", &input_path, "sequence folder (rig.yaml, imu0/, lidarK/)");
   options.AddRequiredString("output_path", &output_path, "output folder");
+  options.AddBool("overwrite", &overwrite, "replace an earlier lisfm output at --output_path");
   options.AddString("lidars", &lidars, "LiDARs to use: all, or a list like 0 / 1 / 0,1");
   options.AddChoice("method", &method, {"iekf", "lidar_only"},
                     "iekf: LiDAR-inertial filter; lidar_only: frame-to-map ICP baseline without "
@@ -81,6 +82,8 @@ int RunLio(int argc, char** argv) {
                     OptionRange::AtLeast(0));
   AddLioOptions(&options, &lio);
   if (!options.Parse(argc, argv)) return 0;
+
+  OutputFolder output(output_path, overwrite);  // checked before the work
 
   const auto t0 = std::chrono::steady_clock::now();
   LogStage("lio: reading " + input_path);
@@ -105,14 +108,8 @@ int RunLio(int argc, char** argv) {
   LogInfo("lio: {} IMU samples, {} frames from {}{}", seq.imu.size(), primary_scans.size(),
           seq.rig.lidars[primary].name, used.size() > 1 ? fmt::format(" + {} more LiDAR(s)", used.size() - 1) : "");
 
-  CreateDirs(output_path);
-  const std::string kf_dir = JoinPaths(output_path, "keyframes");
-  const std::string kf_tmp = kf_dir + ".tmp";
-  if (write_keyframes) {
-    std::error_code ec;
-    std::filesystem::remove_all(kf_tmp, ec);
-    CreateDirs(kf_tmp);
-  }
+  const std::string kf_dir = output.File("keyframes");
+  if (write_keyframes) CreateDirs(kf_dir);
 
   Trajectory trajectory;
   std::vector<StampedPose> keyframe_poses;
@@ -144,7 +141,7 @@ int RunLio(int argc, char** argv) {
     for (auto& kf : odom.TakeKeyframes()) {
       keyframe_poses.push_back({kf.t_ns, kf.world_from_imu});
       if (write_keyframes) {
-        WritePcd(JoinPaths(kf_tmp, std::to_string(kf.t_ns) + ".pcd"), kf.cloud_in_imu);
+        WritePcd(JoinPaths(kf_dir, std::to_string(kf.t_ns) + ".pcd"), kf.cloud_in_imu);
       }
     }
     scans_csv << r.t_ns << "," << (r.processed ? 1 : 0) << "," << r.num_raw_points << ","
@@ -160,8 +157,8 @@ int RunLio(int argc, char** argv) {
   }
 
   // Outputs.
-  WriteTum(JoinPaths(output_path, "trajectory.txt"), trajectory);
-  WriteFileAtomically(JoinPaths(output_path, "scans.csv"), scans_csv.str());
+  WriteTum(output.File("trajectory.txt"), trajectory);
+  WriteFileAtomically(output.File("scans.csv"), scans_csv.str());
   {
     std::ostringstream kf;
     kf << "#t_ns,tx,ty,tz,qx,qy,qz,qw (world_from_imu; cloud keyframes/<t_ns>.pcd in the IMU frame)\n";
@@ -171,25 +168,13 @@ int RunLio(int argc, char** argv) {
       kf << k.t_ns << fmt::format(",{:.9f},{:.9f},{:.9f},{:.9f},{:.9f},{:.9f},{:.9f}\n", t.x(), t.y(),
                                   t.z(), q.x(), q.y(), q.z(), q.w());
     }
-    if (write_keyframes) {
-      WriteFileAtomically(JoinPaths(kf_tmp, "keyframes.csv"), kf.str());
-      std::error_code ec;
-      std::filesystem::remove_all(kf_dir, ec);
-      std::filesystem::rename(kf_tmp, kf_dir, ec);
-      if (ec) throw InputError(kf_dir, "", "cannot move keyframes into place: " + ec.message());
-    }
+    if (write_keyframes) WriteFileAtomically(JoinPaths(kf_dir, "keyframes.csv"), kf.str());
   }
-  PointCloud map_cloud;
-  for (const auto& p : (lidar_only ? lidar_only->map() : odom.map()).AllPoints()) {
-    LidarPoint lp;
-    lp.x = p.x();
-    lp.y = p.y();
-    lp.z = p.z();
-    map_cloud.points.push_back(lp);
-  }
-  map_cloud = VoxelDownsample(map_cloud, map_voxel);
-  WritePcd(JoinPaths(output_path, "map.pcd"), map_cloud);
-  options.WriteConfig(JoinPaths(output_path, "lio_config.yaml"));
+  const PointCloud map_cloud =
+      VoxelDownsample((lidar_only ? lidar_only->map() : odom.map()).ToCloud(), map_voxel);
+  WritePcd(output.File("map.pcd"), map_cloud);
+  options.WriteConfig(output.File("lio_config.yaml"));
+  output.Commit();
 
   const double wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   const double data_s = NsToSeconds(trajectory.end_ns() - primary_scans.front().t_ns);

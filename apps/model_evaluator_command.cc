@@ -92,6 +92,7 @@ int RunModelEvaluator(int argc, char** argv) {
                     "beside the .out file");
   options.AddString("output_path", &output_path, "metrics JSON file (optional)");
   if (!options.Parse(argc, argv)) return 0;
+  if (!output_path.empty()) CheckOutputFileWritable(output_path, "--output_path");
   const auto start = std::chrono::steady_clock::now();
 
   colmap::ReferenceFormat reference_format = colmap::ReferenceFormat::kAuto;
@@ -138,8 +139,6 @@ int RunModelEvaluator(int argc, char** argv) {
   std::cout << "\n" << auc_line << "\n";
 
   if (!output_path.empty()) {
-    const std::string parent = std::filesystem::path(output_path).parent_path().string();
-    if (!parent.empty()) CreateDirs(parent);
     WriteFileAtomically(output_path,
                         SfmEvaluationToJson(
                             ev, {{"model_path", model_folder},

@@ -7,6 +7,8 @@
 #include <cstdlib>
 #include <limits>
 
+#include <Eigen/Eigenvalues>
+
 #include "core/errors.h"
 #include "core/option_check.h"
 
@@ -136,6 +138,39 @@ Sim3 AlignPositions(const std::vector<Vec3>& estimate_positions,
                       type == AlignmentType::kSim3);
 }
 
+AlignmentConditioning ComputeAlignmentConditioning(
+    const std::vector<Vec3>& aligned_estimate_positions,
+    const std::vector<Vec3>& reference_positions,
+    double ate_rotation_rmse_deg,
+    int num_alignment_parameters) {
+  THROW_CHECK_EQ(aligned_estimate_positions.size(), reference_positions.size());
+  AlignmentConditioning c;
+  const size_t n = aligned_estimate_positions.size();
+  const double dof = 3.0 * static_cast<double>(n) - num_alignment_parameters;
+  if (n < 3 || dof <= 0) return c;
+  Vec3 centroid = Vec3::Zero();
+  double sum_sq_residual = 0;
+  for (size_t k = 0; k < n; ++k) {
+    centroid += aligned_estimate_positions[k];
+    sum_sq_residual += (reference_positions[k] - aligned_estimate_positions[k]).squaredNorm();
+  }
+  centroid /= static_cast<double>(n);
+  Mat3 H = Mat3::Zero();
+  for (const Vec3& p : aligned_estimate_positions) {
+    const Vec3 q = p - centroid;
+    H += q.squaredNorm() * Mat3::Identity() - q * q.transpose();
+  }
+  c.position_sigma_m = std::sqrt(sum_sq_residual / dof);
+  const Eigen::SelfAdjointEigenSolver<Mat3> eig(H);
+  const double lambda_min = eig.eigenvalues()(0);  // ascending
+  c.weak_axis = eig.eigenvectors().col(0);
+  if (c.position_sigma_m == 0) return c;
+  c.rotation_sigma_rad = lambda_min > 0 ? c.position_sigma_m / std::sqrt(lambda_min)
+                                        : std::numeric_limits<double>::infinity();
+  c.rotation_dominated = ate_rotation_rmse_deg / kRadToDeg <= 3.0 * c.rotation_sigma_rad;
+  return c;
+}
+
 bool TrajectoryEvaluationOptions::Check() const {
   CHECK_OPTION_GE(max_dt_ns, 0);
   CHECK_OPTION_MSG(
@@ -203,6 +238,11 @@ TrajectoryEvaluation EvaluateTrajectory(
   }
   ev.ate_translation_m = ComputeErrorStats(ev.translation_errors_m);
   ev.ate_rotation_deg = ComputeErrorStats(rotation_errors);
+  if (options.alignment != AlignmentType::kNone) {
+    ev.alignment_conditioning = ComputeAlignmentConditioning(
+        ev.aligned_estimate_positions, ev.reference_positions, ev.ate_rotation_deg.rmse,
+        options.alignment == AlignmentType::kSim3 ? 7 : 6);
+  }
 
   // Relative error of the motion i -> j: (ref_i^-1 ref_j)^-1 (est_i^-1 est_j).
   auto relative_error = [&](size_t i, size_t j) {

@@ -82,6 +82,42 @@ Sim3 AlignPositions(const std::vector<Vec3>& estimate_positions,
                     const std::vector<Vec3>& reference_positions,
                     AlignmentType type);
 
+// How well corresponding positions determine the rotation of a position-only
+// alignment (Umeyama / Horn), and whether that uncertainty dominates the
+// rotation ATE.
+//
+// Criterion. The alignment minimises sum_k |p_ref_k - T p_est_k|^2. For a small
+// rotation error dθ of T about the aligned centroid, the Gauss-Newton
+// information of that cost is H = sum_k [c_k]x^T [c_k]x = sum_k (|c_k|^2 I -
+// c_k c_k^T), c_k the centred aligned estimate positions; with isotropic
+// position errors of variance σ² per axis, cov(dθ) = σ² H^-1. σ² is taken from
+// the ATE residuals r_k: σ² = sum_k |r_k|^2 / (3n - d), d = 6 (SE(3)) or 7
+// (Sim(3)). The worst direction is H's smallest eigenvector, with
+//   rotation_sigma = σ / sqrt(λ_min(H))   (rad).
+// For a nearly straight path λ_min is the positions' spread across the path
+// (summed over both cross axes) and its eigenvector the path direction: the
+// rotation about the path is then barely determined; for a short path every
+// λ is small. The alignment's rotation error adds to every pair's rotation
+// error, so the rotation ATE is `dominated` by the alignment when
+//   ATE rotation rmse <= 3 * rotation_sigma,
+// i.e. the measured rotation error lies within what the alignment alone
+// produces at three standard deviations and cannot be told apart from it.
+// Zero (not dominated) without alignment or with exact positions (σ = 0).
+struct AlignmentConditioning {
+  double rotation_sigma_rad = 0;   // σ / sqrt(λ_min(H)) as above
+  Vec3 weak_axis = Vec3::Zero();   // unit eigenvector of λ_min(H), reference world
+  double position_sigma_m = 0;     // σ from the residuals
+  bool rotation_dominated = false;  // rmse_rot <= 3 rotation_sigma
+};
+
+// The criterion above for aligned estimate positions, reference positions,
+// the rotation ATE rmse (deg) and the number of alignment parameters d.
+AlignmentConditioning ComputeAlignmentConditioning(
+    const std::vector<Vec3>& aligned_estimate_positions,
+    const std::vector<Vec3>& reference_positions,
+    double ate_rotation_rmse_deg,
+    int num_alignment_parameters);
+
 // RPE statistics over pose pairs that are `distance_m` apart along the
 // reference path. For each associated start pose i the end pose is the first
 // later associated pose j whose reference path length from i reaches
@@ -121,6 +157,9 @@ struct TrajectoryEvaluation {
 
   ErrorStats ate_translation_m;  // absolute position error after alignment
   ErrorStats ate_rotation_deg;   // angle of R_ref^T * R_aligned_est
+  // How much of ate_rotation_deg the position-only alignment may explain
+  // (default-initialised, never dominated, for AlignmentType::kNone).
+  AlignmentConditioning alignment_conditioning;
   // RPE between consecutive associated pairs (one "frame" step each).
   ErrorStats rpe_translation_m;
   ErrorStats rpe_rotation_deg;

@@ -163,6 +163,52 @@ TEST(Evaluation, ScaleIsRecoveredBySim3Only) {
   EXPECT_GT(se3.ate_translation_m.rmse, 0.1);
 }
 
+// A short straight path with 1 cm position noise: the positions fix the
+// alignment's rotation about the path only through the noise, so the rotation
+// ATE (here nothing but that alignment error) is flagged. A curved path with
+// the same noise and real 1 deg orientation errors is not.
+TEST(Evaluation, AlignmentConditioningFlagsNearlyStraightPaths) {
+  test::Rng().seed(test::kTestSeed);
+  std::normal_distribution<double> noise(0.0, 0.01);
+  const auto noisy = [&](const Vec3& p) {
+    return Vec3(p.x() + noise(test::Rng()), p.y() + noise(test::Rng()),
+                p.z() + noise(test::Rng()));
+  };
+  std::vector<StampedPose> line_ref, line_est;
+  for (int k = 0; k < 50; ++k) {
+    const SE3 pose(so3::Exp(Vec3(0, 0, 0.01 * k)), Vec3(0.1 * k, 0.0, 1.0));  // 5 m along x
+    line_ref.push_back({kT0 + k * 100 * kMs, pose});
+    line_est.push_back({kT0 + k * 100 * kMs, SE3(pose.rotation(), noisy(pose.translation()))});
+  }
+  const TrajectoryEvaluation line = EvaluateTrajectory(
+      Trajectory(line_ref), Trajectory(line_est), Options(AlignmentType::kSE3));
+  const AlignmentConditioning& a = line.alignment_conditioning;
+  EXPECT_TRUE(a.rotation_dominated) << a.rotation_sigma_rad << " rad vs ATE "
+                                    << line.ate_rotation_deg.rmse << " deg";
+  EXPECT_GT(std::abs(a.weak_axis.x()), 0.99) << a.weak_axis.transpose();  // about the path
+  // σ = 1 cm across a cross-path spread of ~1 cm: σ / sqrt(50 * 2e-4) ~ 0.1 rad.
+  EXPECT_GT(a.rotation_sigma_rad, 0.03);
+  EXPECT_NEAR(a.position_sigma_m, 0.01, 0.003);
+
+  const Trajectory curved = CurvedTrajectory(600);
+  std::normal_distribution<double> tilt(0.0, 0.01);  // rad per axis, ~1 deg in all
+  std::vector<StampedPose> curved_est;
+  for (const StampedPose& p : curved.poses()) {
+    const Quat q = p.pose.rotation() *
+                   so3::Exp(Vec3(tilt(test::Rng()), tilt(test::Rng()), tilt(test::Rng())));
+    curved_est.push_back({p.t_ns, SE3(q, noisy(p.pose.translation()))});
+  }
+  const TrajectoryEvaluation good =
+      EvaluateTrajectory(curved, Trajectory(curved_est), Options(AlignmentType::kSE3));
+  EXPECT_FALSE(good.alignment_conditioning.rotation_dominated);
+  EXPECT_LT(good.alignment_conditioning.rotation_sigma_rad, 1e-3);
+  // No alignment, nothing to flag.
+  const TrajectoryEvaluation none = EvaluateTrajectory(
+      Trajectory(line_ref), Trajectory(line_est), Options(AlignmentType::kNone));
+  EXPECT_FALSE(none.alignment_conditioning.rotation_dominated);
+  EXPECT_EQ(none.alignment_conditioning.rotation_sigma_rad, 0.0);
+}
+
 TEST(Evaluation, NoisyAteMatchesStraightforwardComputation) {
   const Trajectory ref = CurvedTrajectory(400);
   std::mt19937 rng(7);

@@ -92,6 +92,108 @@ void AtomicOutputFile::Commit() {
   committed_ = true;
 }
 
+namespace {
+
+// `path` without trailing separators; refuses names that cannot be renamed
+// into place ("", ".", "..", "/").
+std::string OutputFolderPath(const std::string& path, const std::string& option) {
+  std::string p = path;
+  while (p.size() > 1 && p.back() == '/') p.pop_back();
+  const std::string name = fs::path(p).filename().string();
+  if (p.empty() || p == "/" || name.empty() || name == "." || name == "..") {
+    throw UsageError(option + " '" + path + "': name the folder to create (not '.', '..' or '/')");
+  }
+  return p;
+}
+
+bool HasOutputMarker(const std::string& folder) {
+  return FileExists(JoinPaths(folder, kOutputMarkerName));
+}
+
+bool IsEmptyFolder(const std::string& folder) {
+  std::error_code ec;
+  return fs::is_directory(folder, ec) && fs::is_empty(folder, ec) && !ec;
+}
+
+}  // namespace
+
+OutputFolder::OutputFolder(const std::string& path, bool overwrite, const std::string& option)
+    : final_path_(OutputFolderPath(path, option)), overwrite_(overwrite) {
+  std::error_code ec;
+  const fs::file_status status = fs::status(final_path_, ec);
+  if (fs::exists(status)) {
+    if (!fs::is_directory(status)) {
+      throw UsageError(option + " " + final_path_ + " is a file; name a folder to create");
+    }
+    if (!IsEmptyFolder(final_path_)) {
+      if (!HasOutputMarker(final_path_)) {
+        throw UsageError(option + " " + final_path_ + " is a folder that lisfm did not write (no " +
+                         kOutputMarkerName + " inside), so it is never replaced; choose a new " +
+                         "folder or an empty one");
+      }
+      if (!overwrite_) {
+        throw UsageError(option + " " + final_path_ +
+                         " exists (an earlier lisfm output); choose a new folder or pass "
+                         "--overwrite 1 to replace it");
+      }
+    }
+  }
+  temp_path_ = final_path_ + ".tmp-" + std::to_string(::getpid());
+  fs::remove_all(temp_path_, ec);
+  ec.clear();
+  fs::create_directories(temp_path_, ec);
+  if (ec || !DirExists(temp_path_)) {
+    throw InputError(final_path_, "", "cannot create the output folder: " +
+                                          (ec ? ec.message() : std::string("unknown error")));
+  }
+  try {
+    WriteFileAtomically(File(kOutputMarkerName),
+                        "This folder was written by lisfm; `--overwrite 1` may replace it.\n");
+  } catch (...) {
+    fs::remove_all(temp_path_, ec);
+    throw;
+  }
+  committed_ = false;
+}
+
+OutputFolder::~OutputFolder() {
+  if (committed_ || temp_path_.empty()) return;
+  std::error_code ec;
+  fs::remove_all(temp_path_, ec);
+}
+
+std::string OutputFolder::File(const std::string& name) const {
+  return JoinPaths(temp_path_, name);
+}
+
+void OutputFolder::Commit() {
+  THROW_CHECK(!committed_);
+  const auto keep_and_fail = [&](const std::string& what) {
+    committed_ = true;  // keep the finished outputs where they are
+    throw InputError(final_path_, "", what + "; the finished outputs are in " + temp_path_);
+  };
+  std::error_code ec;
+  if (fs::exists(final_path_, ec) && !IsEmptyFolder(final_path_)) {
+    if (!fs::is_directory(final_path_, ec) || !HasOutputMarker(final_path_)) {
+      keep_and_fail("appeared during the run and was not written by lisfm");
+    }
+    if (!overwrite_) keep_and_fail("an earlier lisfm output appeared during the run");
+  }
+  fs::remove_all(final_path_, ec);
+  if (ec) keep_and_fail("cannot remove the earlier output: " + ec.message());
+  fs::rename(temp_path_, final_path_, ec);
+  if (ec) keep_and_fail("cannot move the output into place: " + ec.message());
+  committed_ = true;
+}
+
+void CheckOutputFileWritable(const std::string& path, const std::string& option) {
+  if (path.empty()) throw UsageError(option + " is empty");
+  if (DirExists(path)) throw UsageError(option + " " + path + " is a folder; name a file");
+  const std::string parent = fs::path(path).parent_path().string();
+  if (!parent.empty()) CreateDirs(parent);
+  AtomicOutputFile probe(path);  // opens a temporary sibling, removed unless committed
+}
+
 LineReader::LineReader(const std::string& path) : path_(path) {
   CheckFileExists(path);
   stream_.open(path);

@@ -1,7 +1,9 @@
 #include "core/logging.h"
 
 #include <atomic>
+#include <cstdio>
 #include <memory>
+#include <mutex>
 
 #include <spdlog/sinks/stdout_color_sinks.h>
 #include <spdlog/spdlog.h>
@@ -10,6 +12,13 @@ namespace lisfm {
 namespace {
 
 std::atomic<LogLevel> g_level{LogLevel::kInfo};
+
+// Guards stderr between log messages and the status line.
+std::mutex g_terminal_mutex;
+std::string g_status_line;  // shown on the terminal's last line; "" = none
+
+// ANSI: carriage return, then erase the whole line.
+constexpr const char* kClearLine = "\r\033[2K";
 
 spdlog::logger& Logger() {
   static std::shared_ptr<spdlog::logger> logger = [] {
@@ -27,6 +36,8 @@ void SetLogLevel(LogLevel level) { g_level = level; }
 LogLevel GetLogLevel() { return g_level; }
 
 void LogMessage(LogLevel level, const std::string& message) {
+  std::lock_guard<std::mutex> lock(g_terminal_mutex);
+  if (!g_status_line.empty()) std::fputs(kClearLine, stderr);
   switch (level) {
     case LogLevel::kDebug:
       Logger().debug(message);
@@ -43,10 +54,32 @@ void LogMessage(LogLevel level, const std::string& message) {
     case LogLevel::kOff:
       break;
   }
+  Logger().flush();
+  if (!g_status_line.empty()) {
+    std::fputs(g_status_line.c_str(), stderr);
+    std::fflush(stderr);
+  }
 }
 
 void LogStage(const std::string& title) {
-  if (GetLogLevel() <= LogLevel::kInfo) Logger().info("== {} ==", title);
+  if (GetLogLevel() <= LogLevel::kInfo) LogMessage(LogLevel::kInfo, "== " + title + " ==");
+}
+
+void ShowStatusLine(const std::string& text) {
+  std::lock_guard<std::mutex> lock(g_terminal_mutex);
+  g_status_line = text;
+  std::fputs(kClearLine, stderr);
+  std::fputs(text.c_str(), stderr);
+  std::fflush(stderr);
+}
+
+void EndStatusLine(const std::string& text) {
+  std::lock_guard<std::mutex> lock(g_terminal_mutex);
+  g_status_line.clear();
+  std::fputs(kClearLine, stderr);
+  std::fputs(text.c_str(), stderr);
+  std::fputs("\n", stderr);
+  std::fflush(stderr);
 }
 
 }  // namespace lisfm

@@ -41,4 +41,13 @@ void LogError(fmt::format_string<Args...> f, Args&&... args) {
 // Prints "== <title> ==" as a stage header.
 void LogStage(const std::string& title);
 
+// A one-line status kept on the last line of the terminal (the progress bar,
+// core/progress.h), on stderr. ShowStatusLine draws or replaces it without a
+// newline; a log message printed while it is shown first clears the line,
+// then prints, then draws the status again, so messages never land inside the
+// bar. EndStatusLine draws it a last time, ends the line and forgets it.
+// `text` holds no newline. Thread-safe (one lock for all stderr output here).
+void ShowStatusLine(const std::string& text);
+void EndStatusLine(const std::string& text);
+
 }  // namespace lisfm

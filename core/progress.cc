@@ -2,7 +2,7 @@
 
 #include <unistd.h>
 
-#include <cstdio>
+#include <algorithm>
 
 #include "core/logging.h"
 
@@ -62,16 +62,16 @@ void ProgressReporter::Print(bool final_line) {
     bar.assign(filled, '#');
     bar.append(kWidth - filled, '.');
     const double eta = (rate > 0 && total_ > 0) ? (total_ - done) / rate : 0.0;
-    if (total_ > 0) {
-      std::fprintf(stderr, "\r%s [%s] %lld/%lld %5.1f%% %.1f/s eta %.0fs   ",
-                   label_.c_str(), bar.c_str(), static_cast<long long>(done),
-                   static_cast<long long>(total_), 100.0 * frac, rate, eta);
+    const std::string text =
+        total_ > 0 ? fmt::format("{} [{}] {}/{} {:5.1f}% {:.1f}/s eta {:.0f}s", label_, bar,
+                                 done, total_, 100.0 * frac, rate, eta)
+                   : fmt::format("{} {} done {:.1f}/s", label_, done, rate);
+    // Through the logging facade, so that log lines never print inside the bar.
+    if (final_line) {
+      EndStatusLine(text);
     } else {
-      std::fprintf(stderr, "\r%s %lld done %.1f/s   ", label_.c_str(),
-                   static_cast<long long>(done), rate);
+      ShowStatusLine(text);
     }
-    if (final_line) std::fprintf(stderr, "\n");
-    std::fflush(stderr);
   } else {
     if (total_ > 0) {
       LogInfo("{}: {}/{} ({:.1f}%) {:.1f}/s{}", label_, done, total_,

@@ -1,7 +1,9 @@
 // Progress reporting for long work. On a terminal (stderr is a tty) it draws a
-// single-line bar with rate and ETA; otherwise it prints a plain line at most
-// every `min_interval_s` seconds (and at 100 %). Thread-safe: Add() may be
-// called from TBB workers.
+// single-line bar with rate and ETA as the logging facade's status line, so a
+// log message meanwhile clears the bar, prints, and the bar is redrawn below it
+// (core/logging.h); otherwise it prints a plain log line at most every
+// `min_interval_s` seconds (and at 100 %). Thread-safe: Add() may be called
+// from TBB workers.
 #pragma once
 
 #include <atomic>
@@ -23,6 +25,9 @@ class ProgressReporter {
 
   int64_t done() const { return done_; }
   double ElapsedSeconds() const;
+
+  // For tests: force the plain (non-tty) mode, or the terminal mode.
+  void SetPlainMode(bool plain) { tty_ = !plain; }
 
  private:
   void Print(bool final_line);

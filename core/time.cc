@@ -47,11 +47,13 @@ bool ParseSecondsToNs(const std::string& text, TimestampNs* t_ns) {
     const double v = std::strtod(text.c_str(), &end);
     if (end == text.c_str()) return false;
     while (*end != '\0' && std::isspace(static_cast<unsigned char>(*end))) ++end;
-    if (*end != '\0' || !std::isfinite(v)) return false;
+    if (*end != '\0' || !IsRepresentableAsNs(v)) return false;
     *t_ns = SecondsToNs(v);
     return true;
   }
   for (int k = std::min(frac_digits, 9); k < 9; ++k) frac *= 10;
+  // whole <= 9223372039 here (the digit loop's guard); the sum must fit in int64.
+  if (whole > INT64_MAX / kNsPerSecond || frac > INT64_MAX - whole * kNsPerSecond) return false;
   const int64_t value = whole * kNsPerSecond + frac;
   *t_ns = negative ? -value : value;
   return true;

@@ -2,6 +2,9 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
+#include <cstdint>
+
 namespace lisfm {
 namespace {
 
@@ -28,6 +31,24 @@ TEST(Time, RejectsGarbage) {
   EXPECT_FALSE(ParseSecondsToNs("abc", &t));
   EXPECT_FALSE(ParseSecondsToNs("1.5x", &t));
   EXPECT_FALSE(ParseSecondsToNs(".", &t));
+}
+
+// Stamps outside the int64 nanosecond range (+-9223372036.854775807 s) are
+// rejected in every notation instead of wrapping.
+TEST(Time, RejectsStampsOutsideTheNanosecondRange) {
+  TimestampNs t = 0;
+  for (const char* text : {"1e10", "-1e10", "1e300", "9.3e9", "inf", "nan", "9223372037",
+                           "9223372036.9", "-9223372036.9", "99999999999"}) {
+    EXPECT_FALSE(ParseSecondsToNs(text, &t)) << text << " -> " << t;
+  }
+  ASSERT_TRUE(ParseSecondsToNs("9223372036.854775807", &t));
+  EXPECT_EQ(t, INT64_MAX);
+  ASSERT_TRUE(ParseSecondsToNs("1e9", &t));
+  EXPECT_EQ(t, 1000000000LL * kNsPerSecond);
+  EXPECT_TRUE(IsRepresentableAsNs(9.2e9));
+  EXPECT_FALSE(IsRepresentableAsNs(1e10));
+  EXPECT_FALSE(IsRepresentableAsNs(std::nan("")));
+  EXPECT_THROW(SecondsToNs(1e10), InternalError);
 }
 
 TEST(Time, FormatRoundTrips) {

@@ -30,6 +30,15 @@ bool LidarFrameReader::Next(LidarFrame* frame) {
   frame->sensor_ids.clear();
   auto load = [&](const SensorFile& f, int sensor) {
     frame->clouds.push_back(ReadPointCloud(f.path));
+    // Point times become int64 ns offsets (SecondsToNs) downstream.
+    const std::vector<LidarPoint>& points = frame->clouds.back().points;
+    for (size_t i = 0; i < points.size(); ++i) {
+      if (!IsRepresentableAsNs(points[i].t)) {
+        throw InputError(f.path, "record " + std::to_string(i),
+                         fmt::format("t = {}, expected finite seconds since the scan stamp",
+                                     points[i].t));
+      }
+    }
     frame->clouds.back().stamp_ns = f.t_ns;
     frame->sensor_ids.push_back(sensor);
   };

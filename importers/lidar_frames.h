@@ -21,7 +21,9 @@ class LidarFrameReader {
 
   size_t num_frames() const;
   // Reads the next frame's clouds (PCD files; stamp_ns from the file name);
-  // false after the last frame.
+  // false after the last frame. Throws InputError naming the file and record
+  // for a point whose time `t` is not finite seconds within the int64
+  // nanosecond range.
   bool Next(LidarFrame* frame);
 
  private:

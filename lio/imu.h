@@ -1,9 +1,10 @@
 // IMU samples and the static initialisation of a LiDAR-inertial filter.
 //
-// Frames (DESIGN.md): the body frame is the IMU frame. The world frame of lio is
-// gravity-aligned with z up; its origin and yaw are those of the IMU at the end
-// of the initial stationary period (the yaw of the minimal rotation taking the
-// measured "up" to +z).
+// Frames (docs/FORMATS.md): the body frame is the IMU frame. The world frame
+// of lio is gravity-aligned with z up and fixed at the initialisation time
+// t_ns (the last sample within min_duration_s of the first one): its origin is
+// the IMU position then, and world_from_imu(t_ns) is the minimal rotation
+// taking the window's measured "up" to +z (for a level IMU, world x = IMU x).
 #pragma once
 
 #include <vector>

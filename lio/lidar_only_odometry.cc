@@ -81,6 +81,8 @@ LioFrameResult LidarOnlyOdometry::ProcessScan(const PointCloud& scan) {
   const PointCloud kept = VoxelDownsample(scan, options_.scan_voxel_size);
   PointSet body;
   body.reserve(kept.size());
+  std::vector<MapPointAttributes> attributes;
+  attributes.reserve(kept.size());
   const double min_r2 = options_.min_range * options_.min_range;
   const double max_r2 = options_.max_range * options_.max_range;
   for (const auto& p : kept.points) {
@@ -89,6 +91,7 @@ LioFrameResult LidarOnlyOdometry::ProcessScan(const PointCloud& scan) {
     const double dt_p = NsToSeconds(scan.stamp_ns + time_offset_ns_ + SecondsToNs(p.t) - t_end);
     const Vec3 x = SE3::Exp(velocity_ * dt_p) * (imu_from_lidar_ * p.xyzd());
     body.push_back(x.cast<float>());
+    attributes.push_back({p.intensity, p.sensor_id});
   }
   result.num_downsampled = static_cast<int>(body.size());
   SE3 pose = predicted;
@@ -112,7 +115,7 @@ LioFrameResult LidarOnlyOdometry::ProcessScan(const PointCloud& scan) {
   have_previous_ = true;
   std::vector<Eigen::Vector3f> world(body.size());
   for (size_t i = 0; i < body.size(); ++i) world[i] = (pose * body[i].cast<double>()).cast<float>();
-  map_->Insert(world);
+  map_->Insert(world, &attributes);
   result.world_from_imu = pose;
   result.processed = true;
   result.time_ms =

@@ -395,7 +395,11 @@ LioFrameResult LioOdometry::ProcessFrame(const std::vector<LidarScanInput>& scan
   RemoveNonFinite(&down);
   result.num_downsampled = static_cast<int>(down.size());
   std::vector<Eigen::Vector3f> body(down.size());
-  for (size_t i = 0; i < down.size(); ++i) body[i] = down.points[i].xyz();
+  std::vector<MapPointAttributes> attributes(down.size());
+  for (size_t i = 0; i < down.size(); ++i) {
+    body[i] = down.points[i].xyz();
+    attributes[i] = {down.points[i].intensity, down.points[i].sensor_id};
+  }
   // The full de-skewed cloud, computed only when a keyframe needs it.
   auto full_deskewed = [&]() {
     PointCloud full;
@@ -410,7 +414,7 @@ LioFrameResult LioOdometry::ProcessFrame(const std::vector<LidarScanInput>& scan
     const Eigen::Matrix3f R = pose.RotationMatrix().cast<float>();
     const Eigen::Vector3f t = pose.translation().cast<float>();
     for (size_t i = 0; i < body.size(); ++i) world[i] = R * body[i] + t;
-    map_->Insert(world);
+    map_->Insert(world, &attributes);
   };
 
   auto finish = [&](const SE3& pose) {
@@ -477,8 +481,10 @@ LioFrameResult LioOdometry::ProcessFrame(const std::vector<LidarScanInput>& scan
     });
   };
 
+  // Deterministic: fixed 512-point chunks summed in a fixed tree, so the
+  // floating-point sum does not depend on the thread schedule or count.
   auto accumulate = [&](const Mat3& R, const Vec3& t) {
-    return tbb::parallel_reduce(
+    return tbb::parallel_deterministic_reduce(
         tbb::blocked_range<size_t>(0, body.size(), 512), Normal6(),
         [&](const tbb::blocked_range<size_t>& r, Normal6 acc) {
           for (size_t i = r.begin(); i < r.end(); ++i) {

@@ -40,10 +40,14 @@ VoxelMap::Key VoxelMap::KeyOf(const Point& p) const {
           static_cast<int32_t>(std::floor(p.z() * inv_voxel_size_))};
 }
 
-size_t VoxelMap::Insert(const std::vector<Point>& points) {
+size_t VoxelMap::Insert(const std::vector<Point>& points,
+                        const std::vector<MapPointAttributes>* attributes) {
+  THROW_CHECK(attributes == nullptr || attributes->size() == points.size());
   size_t stored = 0;
-  for (const Point& p : points) {
+  for (size_t i = 0; i < points.size(); ++i) {
+    const Point& p = points[i];
     if (!p.allFinite()) continue;
+    const MapPointAttributes a = attributes != nullptr ? (*attributes)[i] : MapPointAttributes();
     const Key key = KeyOf(p);
     auto it = grid_.find(key);
     if (it == grid_.end()) {
@@ -52,6 +56,8 @@ size_t VoxelMap::Insert(const std::vector<Point>& points) {
       v.lru_it = lru_.begin();
       v.points.reserve(8);
       v.points.push_back(p);
+      v.attributes.reserve(8);
+      v.attributes.push_back(a);
       grid_.emplace(key, std::move(v));
       ++num_points_;
       ++stored;
@@ -76,6 +82,7 @@ size_t VoxelMap::Insert(const std::vector<Point>& points) {
     }
     if (too_close) continue;
     v.points.push_back(p);
+    v.attributes.push_back(a);
     ++num_points_;
     ++stored;
   }
@@ -138,6 +145,24 @@ std::vector<VoxelMap::Point> VoxelMap::AllPoints() const {
   all.reserve(num_points_);
   for (const auto& kv : grid_) all.insert(all.end(), kv.second.points.begin(), kv.second.points.end());
   return all;
+}
+
+PointCloud VoxelMap::ToCloud() const {
+  PointCloud cloud;
+  cloud.points.reserve(num_points_);
+  for (const auto& kv : grid_) {
+    const Voxel& v = kv.second;
+    for (size_t i = 0; i < v.points.size(); ++i) {
+      LidarPoint lp;
+      lp.x = v.points[i].x();
+      lp.y = v.points[i].y();
+      lp.z = v.points[i].z();
+      lp.intensity = v.attributes[i].intensity;
+      lp.sensor_id = v.attributes[i].sensor_id;
+      cloud.points.push_back(lp);
+    }
+  }
+  return cloud;
 }
 
 }  // namespace lisfm

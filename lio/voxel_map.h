@@ -6,8 +6,9 @@
 // least-recently-used order once more than `max_voxels` exist, which removes
 // far-away regions as the sensor moves.
 //
-// Points are world-frame positions (float). Not thread-safe for concurrent
-// insertion; concurrent const searches are safe.
+// Points are world-frame positions (float), each with the attributes of the
+// LiDAR return that created it (MapPointAttributes). Not thread-safe for
+// concurrent insertion; concurrent const searches are safe.
 #pragma once
 
 #include <cstdint>
@@ -15,6 +16,7 @@
 #include <unordered_map>
 #include <vector>
 
+#include "core/point_cloud.h"
 #include "core/types.h"
 
 namespace lisfm {
@@ -27,6 +29,12 @@ struct VoxelMapOptions {
   bool Check() const;
 };
 
+// What a map point keeps of the LiDAR return that created it.
+struct MapPointAttributes {
+  float intensity = 0;    // return intensity, as the sensor reported it
+  uint8_t sensor_id = 0;  // the LiDAR that measured it (lidar0, lidar1, ...)
+};
+
 class VoxelMap {
  public:
   using Point = Eigen::Vector3f;
@@ -34,8 +42,11 @@ class VoxelMap {
   explicit VoxelMap(const VoxelMapOptions& options);
 
   // Adds world points; returns how many were stored (others were too close to
-  // an existing point of their voxel or the voxel was full).
-  size_t Insert(const std::vector<Point>& points);
+  // an existing point of their voxel or the voxel was full). `attributes`, when
+  // given, has one entry per point and is stored with the kept points
+  // (otherwise they get default attributes).
+  size_t Insert(const std::vector<Point>& points,
+                const std::vector<MapPointAttributes>* attributes = nullptr);
 
   // Up to k nearest neighbours of `query` within `max_distance` (m), sorted
   // by distance. Returns the count found; fills `neighbours` and squared distances.
@@ -48,6 +59,10 @@ class VoxelMap {
   size_t NumPoints() const { return num_points_; }
   size_t NumVoxels() const { return grid_.size(); }
   std::vector<Point> AllPoints() const;
+  // The map as a world-frame cloud, in the order of AllPoints(): x y z,
+  // intensity and sensor_id of each point; t and ring are 0 (a map point has
+  // no time within a scan). stamp_ns is 0.
+  PointCloud ToCloud() const;
 
  private:
   struct Key {
@@ -63,6 +78,7 @@ class VoxelMap {
   };
   struct Voxel {
     std::vector<Point> points;
+    std::vector<MapPointAttributes> attributes;  // parallel to points
     std::list<Key>::iterator lru_it;
   };
 

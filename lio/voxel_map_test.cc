@@ -70,6 +70,42 @@ TEST(VoxelMap, InsertionKeepsMinimumSpacing) {
   }
 }
 
+// Each stored point keeps the intensity and sensor of the return that created
+// it; ToCloud lists them in the order of AllPoints.
+TEST(VoxelMap, KeepsTheAttributesOfStoredPoints) {
+  VoxelMapOptions options;
+  options.voxel_size = 0.5;
+  options.resolution = 0.1;
+  VoxelMap map(options);
+  const auto pts = RandomPoints(5000, 1.0f);
+  std::vector<MapPointAttributes> attributes(pts.size());
+  for (size_t i = 0; i < pts.size(); ++i) {
+    attributes[i] = {static_cast<float>(i), static_cast<uint8_t>(i % 3)};
+  }
+  map.Insert(pts, &attributes);
+  map.Insert({Eigen::Vector3f(5.1f, 5.1f, 5.1f)});  // default attributes
+  const PointCloud cloud = map.ToCloud();
+  const auto stored = map.AllPoints();
+  ASSERT_EQ(cloud.size(), stored.size());
+  ASSERT_LT(stored.size(), pts.size());
+  size_t defaults = 0;
+  for (size_t k = 0; k < cloud.size(); ++k) {
+    const LidarPoint& p = cloud.points[k];
+    EXPECT_EQ(p.xyz(), stored[k]);
+    if (p.xyz() == Eigen::Vector3f(5.1f, 5.1f, 5.1f)) {
+      ++defaults;
+      EXPECT_EQ(p.intensity, 0.0f);
+      continue;
+    }
+    const size_t i = static_cast<size_t>(p.intensity);  // the index of the input point
+    ASSERT_LT(i, pts.size());
+    EXPECT_EQ(pts[i], p.xyz());
+    EXPECT_EQ(p.sensor_id, i % 3);
+    EXPECT_EQ(p.t, 0.0f);
+  }
+  EXPECT_EQ(defaults, 1u);
+}
+
 TEST(VoxelMap, LeastRecentlyUsedVoxelsAreEvicted) {
   VoxelMapOptions options;
   options.voxel_size = 1.0;

@@ -42,7 +42,9 @@ for conv in "bin BIN" "bin TXT" "txt BIN" "txt TXT" "bin PLY"; do
   src="$WORK/$1"; type=$2
   out="$WORK/out_$1_$type"; [ "$type" = PLY ] && out="$WORK/out_$1.ply"
   mkdir -p "$WORK/out_$1_$type"
-  l=$(timeit "$LISFM" model_converter --input_path "$src" --output_path "$out" --output_type "$type" --quiet 1)
+  # --overwrite 1: each timed repetition replaces the previous (lisfm-written) output folder.
+  l=$(timeit "$LISFM" model_converter --input_path "$src" --output_path "$out" --output_type "$type" \
+        --overwrite 1 --quiet 1)
   c="n/a"
   [ -n "$COLMAP" ] && c=$(timeit "$COLMAP" model_converter --input_path "$src" --output_path "$out" --output_type "$type")
   printf "| %s -> %s | %s | %s |\n" "$1" "$type" "$l" "$c"

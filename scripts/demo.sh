@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # The lisfm demo: installs what is missing, builds, and runs the main job on the
 # embedded default data, then prints a summary.
-#   scripts/demo.sh [OUTPUT_DIR]     (default: ./demo_output)
+#   scripts/demo.sh [OUTPUT_DIR]     (default: demo_output/ in the checkout, ignored by git)
+# Re-running replaces the earlier demo outputs (--overwrite 1).
 #
 # Steps (later stages of the pipeline join as they land):
 #   1. lisfm simulate: a 30 s HILTI-style office recording (IMU, XT-32-like LiDAR,
@@ -13,7 +14,7 @@
 #      the surveyed control points.
 set -euo pipefail
 source "$(dirname "${BASH_SOURCE[0]}")/common.sh"
-OUT="${1:-$PWD/demo_output}"
+OUT="${1:-$LISFM_ROOT/demo_output}"
 
 "$LISFM_ROOT/scripts/install_deps.sh"
 mkdir -p "$LISFM_BUILD_DIR"
@@ -24,12 +25,12 @@ echo "== 1/4 simulate a 30 s office recording =="
 "$LISFM" simulate --scene office --duration 30 --camera_rate 0.5 --seed 1 \
   --output_path "$OUT/sequence" --overwrite 1
 echo "== 2/4 LiDAR-inertial odometry =="
-"$LISFM" lio --input_path "$OUT/sequence" --output_path "$OUT/lio"
+"$LISFM" lio --input_path "$OUT/sequence" --output_path "$OUT/lio" --overwrite 1
 echo "== 3/4 evaluate the odometry against the simulator's ground truth =="
 "$LISFM" evaluate --reference_path "$OUT/sequence/groundtruth.txt" \
-  --estimate_path "$OUT/lio/trajectory.txt" --max_dt 0.006 --output_path "$OUT/lio_eval"
+  --estimate_path "$OUT/lio/trajectory.txt" --max_dt 0.006 --output_path "$OUT/lio_eval" --overwrite 1
 "$LISFM" evaluate --reference_path "$OUT/sequence/controlpoints.txt" \
-  --reference_type control_points --estimate_path "$OUT/lio/trajectory.txt" --output_path "$OUT/lio_score"
+  --reference_type control_points --estimate_path "$OUT/lio/trajectory.txt" --output_path "$OUT/lio_score" --overwrite 1
 
 GT_DIR="$LISFM_SHARED_DATA/hilti2022_groundtruth"
 LIO="$LISFM_SHARED_DATA/hilti_exp4_small/lidar/fastlio2_odom.txt"
@@ -37,9 +38,9 @@ if [ -d "$GT_DIR" ] && [ -f "$LIO" ]; then
   echo "== 4/4 real data: FAST-LIO2 on HILTI 2022 exp04 vs ground truth =="
   DENSE="$GT_DIR/exp_04_construction_upper_level_easy_2_2022-03-03-11-48-59_imu.txt"
   "$LISFM" evaluate --reference_path "$DENSE" --estimate_path "$LIO" --max_dt 0.05 \
-    --output_path "$OUT/fastlio2_exp04_eval"
+    --output_path "$OUT/fastlio2_exp04_eval" --overwrite 1
   "$LISFM" evaluate --reference_path "$GT_DIR/exp04_construction_upper_level.txt" \
-    --reference_type control_points --estimate_path "$LIO" --output_path "$OUT/fastlio2_exp04_score"
+    --reference_type control_points --estimate_path "$LIO" --output_path "$OUT/fastlio2_exp04_score" --overwrite 1
 else
   echo "== 4/4 skipped: $LISFM_SHARED_DATA is missing =="
 fi

@@ -1,12 +1,10 @@
 #include "sim/simulator.h"
 
 #include <time.h>
-#include <unistd.h>
 
 #include <algorithm>
 #include <atomic>
 #include <chrono>
-#include <filesystem>
 #include <fstream>
 #include <iomanip>
 #include <memory>
@@ -34,7 +32,6 @@ namespace lisfm {
 namespace sim {
 namespace {
 
-namespace fs = std::filesystem;
 
 // HILTI 2022 pole tip in the IMU frame (evaluation-2022, REFERENCES.md sec. 7):
 // control points are world_from_imu * kPoleTipInImu, as core/evaluation scores them.
@@ -147,11 +144,9 @@ SimulationSummary Simulate(const SimulatorOptions& options,
   THROW_CHECK_OPTIONS(options);
   const auto t_start = std::chrono::steady_clock::now();
   SimulationSummary summary;
-  const std::string output = options.output_path;
-  if (fs::exists(output) && !options.overwrite) {
-    throw UsageError("--output_path " + output +
-                     " exists; choose a new folder or pass --overwrite 1");
-  }
+  // Before the work: refuses an unusable output location at once.
+  OutputFolder output(options.output_path, options.overwrite);
+  const std::string& temp = output.path();
   const Rig rig = PrepareRig(input_rig, options.lidars);
 
   // ---- scene and motion ----
@@ -214,19 +209,7 @@ SimulationSummary Simulate(const SimulatorOptions& options,
                                static_cast<float>(scene_options.texture_scale)};
   summary.seconds_scene = Seconds(t_start);
 
-  // ---- folder ----
-  const std::string temp = output + ".tmp-" + std::to_string(getpid());
-  if (fs::exists(temp)) fs::remove_all(temp);
-  CreateDirs(temp);
-  struct TempGuard {
-    std::string path;
-    bool keep = false;
-    ~TempGuard() {
-      std::error_code ec;
-      if (!keep) fs::remove_all(path, ec);
-    }
-  } guard{temp};
-
+  // ---- rig and scene ----
   WriteRigYaml(JoinPaths(temp, "rig.yaml"), rig,
                "lisfm simulate: the rig of this sequence (time offsets 0: stamps are on the "
                "IMU clock)");
@@ -479,9 +462,7 @@ SimulationSummary Simulate(const SimulatorOptions& options,
           summary.cpu_camera_write);
 
   if (before_commit) before_commit(temp);
-  if (fs::exists(output)) fs::remove_all(output);
-  fs::rename(temp, output);
-  guard.keep = true;
+  output.Commit();
   summary.seconds_total = Seconds(t_start);
   return summary;
 }

@@ -7,8 +7,10 @@
 // time offsets of the written rig.yaml are 0). Generated sequences start at
 // kDefaultStartNs; sequences driven by a TUM file keep its stamps.
 //
-// Output is written into `<output_path>.tmp-<pid>` and renamed at the end, so
-// a failed run never leaves a folder that looks complete. Deterministic for a
+// Output goes through core's OutputFolder: checked before the work, written
+// into `<output_path>.tmp-<pid>` and renamed at the end, so a failed run never
+// leaves a folder that looks complete; `overwrite` replaces only an earlier
+// lisfm output (a folder holding the .lisfm_output marker). Deterministic for a
 // given seed (TBB only changes the order of work, never the values).
 #pragma once
 
@@ -37,7 +39,7 @@ struct SimulatorOptions {
   bool color = false;             // colour (BGR) instead of grayscale images
   bool rgbd = false;              // add an RGB-D camera (rgbd0/)
   double rgbd_rate = 5.0;         // Hz
-  bool overwrite = false;         // replace an existing output folder
+  bool overwrite = false;         // replace an earlier lisfm output folder at output_path
 
   bool Check() const;
 };

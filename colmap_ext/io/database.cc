@@ -1,5 +1,7 @@
 #include "colmap_ext/io/database.h"
 
+#include <unistd.h>
+
 #include <algorithm>
 #include <cmath>
 #include <cstring>
@@ -189,7 +191,15 @@ std::string Join(const std::vector<std::string>& v) {
 Database::Database(const std::string& path, OpenMode mode) : path_(path) {
   read_only_ = mode == OpenMode::kReadOnly;
   if (mode != OpenMode::kCreate) CheckFileExists(path, "database");
-  int flags = read_only_ ? SQLITE_OPEN_READONLY : SQLITE_OPEN_READWRITE;
+  // Reading a WAL-mode database (journal_mode=WAL, as stock COLMAP 3.8 leaves
+  // the databases it writes) creates `-wal` and `-shm` files beside it, and
+  // only a connection that may write removes them when the last one closes.
+  // So a read-only Database on a writable file uses a read-write connection
+  // that refuses every write (PRAGMA query_only): the files disappear on close
+  // as with any writer. A file we may not write is opened read-only (SQLite
+  // may then leave them).
+  const bool query_only = read_only_ && ::access(path.c_str(), W_OK) == 0;
+  int flags = read_only_ && !query_only ? SQLITE_OPEN_READONLY : SQLITE_OPEN_READWRITE;
   if (mode == OpenMode::kCreate) flags |= SQLITE_OPEN_CREATE;
   const int rc = sqlite3_open_v2(path.c_str(), &db_, flags | SQLITE_OPEN_NOMUTEX, nullptr);
   if (rc != SQLITE_OK) {
@@ -199,6 +209,7 @@ Database::Database(const std::string& path, OpenMode mode) : path_(path) {
     Fail("", "cannot open database: " + message);
   }
   try {
+    if (query_only) Exec("PRAGMA query_only = ON");
     InspectSchema();
     if (!read_only_) {
       Exec("PRAGMA foreign_keys=ON");

@@ -140,7 +140,8 @@ struct DatabaseSchema {
 class Database {
  public:
   enum class OpenMode {
-    kReadOnly,   // the file must exist and be a COLMAP database
+    kReadOnly,   // the file must exist and be a COLMAP database; never written,
+                 // and no -wal/-shm files are left beside it (if writable)
     kReadWrite,  // same, writable
     kCreate,     // create the file and the 3.8 tables if missing
   };

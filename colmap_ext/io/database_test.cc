@@ -5,6 +5,8 @@
 #include <gtest/gtest.h>
 #include <sqlite3.h>
 
+#include "core/errors.h"
+#include "core/file_utils.h"
 #include "tests/common/test_utils.h"
 
 namespace lisfm {
@@ -208,6 +210,29 @@ TEST(Database, WrongBlobSizesNameTableAndRecord) {
                                      {path, "table two_view_geometries", "F blob"}));
   EXPECT_TRUE(test::ThrowsInputError([&] { db.ReadAllCameras(); },
                                      {path, "table cameras, camera_id 1", "expected 32 bytes"}));
+}
+
+// Stock COLMAP leaves its databases in WAL mode; reading one must not leave
+// `-wal` / `-shm` files beside it, nor change its content.
+TEST(Database, ReadingAWalDatabaseLeavesNoSideFiles) {
+  test::TempDir dir;
+  const std::string path = dir.File("wal.db");
+  {
+    Database db(path, Database::OpenMode::kCreate);
+    db.WriteCamera(MakeCamera(1, {1, 2, 3, 4}));
+  }
+  RawExec(path, "PRAGMA journal_mode=WAL");
+  ASSERT_FALSE(FileExists(path + "-wal"));  // sqlite3 checkpoints and removes them on close
+  const std::string before = ReadFile(path);
+  {
+    const Database db(path, Database::OpenMode::kReadOnly);
+    EXPECT_EQ(db.NumCameras(), 1u);
+    EXPECT_EQ(db.ReadCamera(1).params[3], 4.0);
+    EXPECT_THROW(db.ReadCamera(7), InputError);
+  }
+  EXPECT_FALSE(FileExists(path + "-wal"));
+  EXPECT_FALSE(FileExists(path + "-shm"));
+  EXPECT_EQ(ReadFile(path), before);
 }
 
 TEST(Database, ReadsNewerSchemaElements) {

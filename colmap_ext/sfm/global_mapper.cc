@@ -2,7 +2,10 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <set>
+
+#include <fmt/format.h>
 
 #include "core/errors.h"
 #include "core/logging.h"
@@ -73,9 +76,74 @@ void DropUnregisteredObservations(MapperState* state) {
   }
 }
 
+// "a.jpg, b.jpg, ... (+N more)": the first image name of up to `max_listed` frames.
+std::string FrameNames(const MapperState& state, const std::vector<frame_t>& frame_ids,
+                       size_t max_listed = 5) {
+  std::string text;
+  for (size_t i = 0; i < frame_ids.size() && i < max_listed; ++i) {
+    const SfmFrame& frame = state.frames.at(frame_ids[i]);
+    text += (i > 0 ? ", " : "") +
+            (frame.image_ids.empty() ? "frame " + std::to_string(frame.frame_id)
+                                     : state.images.at(frame.image_ids.front()).name);
+  }
+  if (frame_ids.size() > max_listed) {
+    text += fmt::format(" (+{} more)", frame_ids.size() - max_listed);
+  }
+  return text;
+}
+
+// The frames of `frame_ids` that `state` does not register.
+std::vector<frame_t> UnregisteredFrames(const std::vector<frame_t>& frame_ids,
+                                        const MapperState& state) {
+  std::vector<frame_t> lost;
+  for (const frame_t id : frame_ids) {
+    if (!state.frames.at(id).registered) lost.push_back(id);
+  }
+  return lost;
+}
+
+// Relative focal-length difference above which a dropped frame's warning
+// suspects its camera's prior (EXIF) focal length.
+constexpr double kSuspectFocalDifference = 0.2;
+
+// Why the focal length of `camera_id` (used by a frame being dropped) looks
+// wrong, or "": compared with the median focal length that bundle adjustment
+// gave the cameras of the same image size in `registered` (other cameras), or
+// when there are none, with its own prior in `prior_cameras`.
+std::string SuspectFocalLength(const MapperState& state,
+                               const std::map<camera_t, Camera>& prior_cameras,
+                               const std::set<camera_t>& registered, camera_t camera_id) {
+  const Camera& camera = state.cameras.at(camera_id);
+  const double focal = camera.MeanFocalLength();
+  std::vector<double> peers;
+  for (const camera_t other : registered) {
+    const Camera& c = state.cameras.at(other);
+    if (other != camera_id && c.width == camera.width && c.height == camera.height) {
+      peers.push_back(c.MeanFocalLength());
+    }
+  }
+  if (!peers.empty()) {
+    std::nth_element(peers.begin(), peers.begin() + peers.size() / 2, peers.end());
+    const double peer = peers[peers.size() / 2];
+    if (std::abs(focal / peer - 1.0) <= kSuspectFocalDifference) return "";
+    return fmt::format("; its camera {} has focal length {:.1f} px, {:.2f}x the {:.1f} px that "
+                       "bundle adjustment gave the registered cameras of this image size (a "
+                       "wrong EXIF/prior focal length?)",
+                       camera_id, focal, focal / peer, peer);
+  }
+  const double prior = prior_cameras.at(camera_id).MeanFocalLength();
+  if (std::abs(focal / prior - 1.0) <= kSuspectFocalDifference) return "";
+  return fmt::format("; its camera {} went from the prior focal length {:.1f} px to {:.1f} px "
+                     "in bundle adjustment (a wrong EXIF/prior focal length?)",
+                     camera_id, prior, focal);
+}
+
 // Frames whose images see fewer than `min_observations` triangulated points
-// are unregistered. Returns how many.
-size_t DropWeakFrames(int min_observations, MapperState* state) {
+// are unregistered, each with a warning that says why: the count and, when a
+// camera of the frame has a suspect focal length (SuspectFocalLength), that
+// too. Returns how many.
+size_t DropWeakFrames(int min_observations, const std::map<camera_t, Camera>& prior_cameras,
+                      MapperState* state) {
   std::map<frame_t, int> observations;
   for (const Track& track : state->tracks) {
     if (!track.triangulated) continue;
@@ -83,15 +151,30 @@ size_t DropWeakFrames(int min_observations, MapperState* state) {
       ++observations[state->images.at(e.image_id).frame_id];
     }
   }
-  size_t dropped = 0;
-  for (auto& [frame_id, frame] : state->frames) {
-    if (frame.registered && observations[frame_id] < min_observations) {
-      frame.registered = false;
-      ++dropped;
+  std::vector<frame_t> weak;
+  std::set<camera_t> kept_cameras;
+  for (const auto& [frame_id, frame] : state->frames) {
+    if (!frame.registered) continue;
+    if (observations[frame_id] < min_observations) {
+      weak.push_back(frame_id);
+    } else {
+      for (const image_t id : frame.image_ids) kept_cameras.insert(state->images.at(id).camera_id);
     }
   }
-  if (dropped > 0) DropUnregisteredObservations(state);
-  return dropped;
+  for (const frame_t frame_id : weak) {
+    std::string focal;
+    for (const image_t image_id : state->frames.at(frame_id).image_ids) {
+      focal = SuspectFocalLength(*state, prior_cameras, kept_cameras,
+                                 state->images.at(image_id).camera_id);
+      if (!focal.empty()) break;
+    }
+    LogWarning("global_mapper: dropped frame {}: it sees {} triangulated points, fewer than "
+               "Mapper.min_frame_observations = {}{}",
+               FrameNames(*state, {frame_id}), observations[frame_id], min_observations, focal);
+  }
+  for (const frame_t frame_id : weak) state->frames.at(frame_id).registered = false;
+  if (!weak.empty()) DropUnregisteredObservations(state);
+  return weak.size();
 }
 
 MapperModelCounts ModelCounts(const MapperState& state) {
@@ -208,6 +291,20 @@ GlobalMapperResult RunGlobalMapper(const Database& database, const Rig* rig,
       ++summary.num_components;
     }
   }
+  {
+    std::vector<frame_t> small;
+    for (const auto& c : components) {
+      if (static_cast<int>(c.size()) < options.min_component_frames) {
+        small.insert(small.end(), c.begin(), c.end());
+      }
+    }
+    if (!small.empty()) {
+      LogWarning("global_mapper: {} frame(s) not reconstructed: their view-graph components have "
+                 "fewer than Mapper.min_component_frames = {} frames (too few matched pairs "
+                 "link them to the rest): {}",
+                 small.size(), options.min_component_frames, FrameNames(base, small));
+    }
+  }
   if (components.empty() ||
       static_cast<int>(components.front().size()) < options.min_component_frames) {
     LogWarning("global_mapper: no connected component with at least {} frames; no model",
@@ -217,7 +314,17 @@ GlobalMapperResult RunGlobalMapper(const Database& database, const Rig* rig,
   for (size_t c = 0; c < components.size(); ++c) {
     const std::vector<frame_t>& frame_ids = components[c];
     if (static_cast<int>(frame_ids.size()) < options.min_component_frames) continue;
-    if (!options.reconstruct_all_components && !result.models.empty()) break;
+    if (!options.reconstruct_all_components && !result.models.empty()) {
+      std::vector<frame_t> skipped;
+      for (size_t k = c; k < components.size(); ++k) {
+        if (static_cast<int>(components[k].size()) < options.min_component_frames) continue;
+        skipped.insert(skipped.end(), components[k].begin(), components[k].end());
+      }
+      LogWarning("global_mapper: {} frame(s) of smaller components not reconstructed "
+                 "(Mapper.reconstruct_all_components = 0): {}",
+                 skipped.size(), FrameNames(base, skipped));
+      break;
+    }
     MapperComponentSummary& comp = summary.components.emplace_back();
     comp.frames = frame_ids.size();
     MapperState state = base;  // the stages register only this component's frames
@@ -230,6 +337,17 @@ GlobalMapperResult RunGlobalMapper(const Database& database, const Rig* rig,
       comp.rotation_averaging = AverageRotations(options.rotation_averaging, frame_ids, &state);
     }
     comp.rotation_averaging_seconds = SecondsSince(t0);
+
+    const std::vector<frame_t> lost_rotation = UnregisteredFrames(frame_ids, state);
+    if (!lost_rotation.empty()) {
+      LogWarning("global_mapper: component {}: rotation averaging dropped {} of {} frame(s): {}: {}",
+                 c, lost_rotation.size(), frame_ids.size(),
+                 options.skip_rotation_averaging
+                     ? "they have no pose prior (Mapper.skip_rotation_averaging = 1)"
+                     : "their relative rotations to the rest were rejected as inconsistent "
+                       "(RotationAveraging.max_rotation_error_deg)",
+                 FrameNames(state, lost_rotation));
+    }
 
     t0 = Clock::now();
     std::vector<frame_t> registered;
@@ -245,6 +363,15 @@ GlobalMapperResult RunGlobalMapper(const Database& database, const Rig* rig,
     }
     comp.translation_averaging_registered_frames = state.NumRegisteredFrames();
     comp.translation_averaging_seconds = SecondsSince(t0);
+    const std::vector<frame_t> lost_translation = UnregisteredFrames(registered, state);
+    if (!lost_translation.empty()) {
+      LogWarning("global_mapper: component {}: translation averaging dropped {} frame(s): {}: {}",
+                 c, lost_translation.size(),
+                 options.skip_translation_averaging
+                     ? "they have no position prior (Mapper.skip_translation_averaging = 1)"
+                     : "no position is determined for them once outlier directions are removed",
+                 FrameNames(state, lost_translation));
+    }
     if (static_cast<int>(state.NumRegisteredFrames()) < options.min_component_frames) {
       LogWarning("global_mapper: component {} lost its frames in averaging", c);
       comp.lost_frames_in_averaging = true;
@@ -296,7 +423,8 @@ GlobalMapperResult RunGlobalMapper(const Database& database, const Rig* rig,
               c, round, r.model.registered_frames, r.model.points, r.model.observations,
               r.model.mean_reprojection_error_px);
     }
-    comp.dropped_weak_frames = DropWeakFrames(options.min_frame_observations, &state);
+    comp.dropped_weak_frames =
+        DropWeakFrames(options.min_frame_observations, base.cameras, &state);
     comp.model = ModelCounts(state);
 
     t0 = Clock::now();

@@ -16,6 +16,7 @@
 #include "core/errors.h"
 #include "core/file_utils.h"
 #include "core/logging.h"
+#include "core/time.h"
 
 namespace lisfm {
 namespace {
@@ -253,6 +254,11 @@ RigCamera ParseCamera(const YamlSource& src, const YAML::Node& node, const std::
                                            s + ".T_cam_imu");
   if (node["timeshift_cam_imu"].IsDefined()) {
     camera.timeshift_cam_imu_s = src.Double(node["timeshift_cam_imu"], s + ".timeshift_cam_imu");
+    if (!IsRepresentableAsNs(camera.timeshift_cam_imu_s)) {
+      src.Fail(s + ".timeshift_cam_imu", node["timeshift_cam_imu"],
+               fmt::format("expected seconds within +-{:.0f} (int64 nanoseconds), found {}",
+                           kMaxAbsSecondsAsNs, camera.timeshift_cam_imu_s));
+    }
   }
   if (node["rostopic"].IsDefined()) camera.rostopic = src.String(node["rostopic"], s + ".rostopic");
 
@@ -342,8 +348,10 @@ RigLidar ParseLidar(const YamlSource& src, const YAML::Node& node, const std::st
   if (!(lidar.scan_rate > 0.0) || !std::isfinite(lidar.scan_rate)) {
     src.Fail(s + ".scan_rate", node["scan_rate"], fmt::format("expected > 0 Hz, found {}", lidar.scan_rate));
   }
-  if (!std::isfinite(lidar.time_offset_s)) {
-    src.Fail(s + ".time_offset", node["time_offset"], "expected a finite number");
+  if (!IsRepresentableAsNs(lidar.time_offset_s)) {
+    src.Fail(s + ".time_offset", node["time_offset"],
+             fmt::format("expected finite seconds within +-{:.0f} (int64 nanoseconds), found {}",
+                         kMaxAbsSecondsAsNs, lidar.time_offset_s));
   }
   static const std::set<std::string> kKnown = {"name", "type", "T_imu_lidar", "time_offset", "rings",
                                                "min_range", "max_range", "scan_rate", "rostopic"};

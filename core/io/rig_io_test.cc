@@ -258,6 +258,11 @@ TEST(RigIo, BadInputNamesFileFieldAndLine) {
   EXPECT_THAT(e, HasSubstr("lidars.lidar0.max_range: expected a finite value > min_range"));
   e = ReadError(dir, three_cams + Replace(lidar, "[0, 1, 0, 0], [0, 0, 1, 0]", "[0, 1, 0, 0], [0, 1, 1, 0]"));
   EXPECT_THAT(e, HasSubstr("lidars.lidar0.T_imu_lidar: not a rigid transform"));
+  // Time offsets must convert to int64 nanoseconds.
+  e = ReadError(dir, three_cams + lidar + "    time_offset: 1e10\n");
+  EXPECT_THAT(e, HasSubstr("lidars.lidar0.time_offset: expected finite seconds within"));
+  e = ReadError(dir, "cam0:\n" + cam + "  timeshift_cam_imu: -2e10\n");
+  EXPECT_THAT(e, HasSubstr("cam0.timeshift_cam_imu: expected seconds within"));
   e = ReadError(dir, three_cams + "lidars: 5\n");
   EXPECT_THAT(e, HasSubstr("rig.yaml:lidars: expected a list or map of LiDARs"));
   // Bad IMU values.

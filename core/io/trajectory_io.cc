@@ -62,10 +62,19 @@ TimestampNs ParseSecondsField(const LineReader& reader,
                               const std::string& layout) {
   TimestampNs t_ns = 0;
   if (!ParseSecondsToNs(token, &t_ns)) {
-    throw InputError(reader.path(),
-                     reader.Where(),
-                     "expected a time in seconds in column 1 of '" + layout +
-                         "', found '" + token + "'");
+    double seconds = 0;  // a number ParseSecondsToNs rejects is out of range
+    const bool out_of_range = ParseDouble(token, &seconds);
+    throw InputError(
+        reader.path(),
+        reader.Where(),
+        out_of_range
+            ? fmt::format("expected a time in seconds within +-{:.0f} s (int64 "
+                          "nanoseconds) in column 1 of '{}', found '{}'",
+                          kMaxAbsSecondsAsNs,
+                          layout,
+                          token)
+            : "expected a time in seconds in column 1 of '" + layout +
+                  "', found '" + token + "'");
   }
   return t_ns;
 }

@@ -262,6 +262,25 @@ TEST(TrajectoryIo, InputErrorsNameFileLineAndExpectation) {
       test::ThrowsInputError([&] { ReadTrajectory(csv); }, {csv, "line 2", "strictly increasing"}));
 }
 
+// A stamp outside the int64 nanosecond range, in any notation, is an error
+// naming file and line (never a silently wrapped time).
+TEST(TrajectoryIo, StampsOutsideTheNanosecondRangeAreRejected) {
+  TempDir dir;
+  const std::string path = dir.File("far.txt");
+  for (const std::string stamp : {"1e10", "-1e10", "9300000000.5", "1E+12"}) {
+    WriteText(path, "1.0 0 0 0 0 0 0 1\n" + stamp + " 0 0 0 0 0 0 1\n");
+    EXPECT_TRUE(test::ThrowsInputError([&] { ReadTum(path); },
+                                       {path, "line 2", "int64 nanoseconds", stamp}));
+  }
+  const std::string points = dir.File("points.txt");
+  WriteText(points, "1e10 0 0 0\n");
+  EXPECT_TRUE(test::ThrowsInputError([&] { ReadControlPoints(points); },
+                                     {points, "line 1", "int64 nanoseconds"}));
+  // In range, exponent form is fine.
+  WriteText(path, "1e9 0 0 0 0 0 0 1\n");
+  EXPECT_EQ(ReadTum(path)[0].t_ns, 1000000000LL * kNsPerSecond);
+}
+
 TEST(TrajectoryIo, ExtensionDispatchAndSniffing) {
   TempDir dir;
   const Trajectory traj = RandomTrajectory(5);

@@ -285,9 +285,81 @@ TEST(Evaluate, BadInputExitsWithOneClearError) {
       ref_arg + " --estimate_path " + dir.File("ref.txt") + " --max_dt -1",
       &code);
   EXPECT_EQ(code, 2) << out;
+  out = Evaluate(  // beyond the int64 nanosecond range: no silent wrap
+      ref_arg + " --estimate " + dir.File("ref.txt") + " --max_dt 1e10", &code);
+  EXPECT_EQ(code, 2) << out;
+  EXPECT_NE(out.find("--max_dt"), std::string::npos) << out;
   out = Evaluate(ref_arg, &code);
   EXPECT_EQ(code, 2) << out;
   EXPECT_NE(out.find("--estimate"), std::string::npos) << out;
+}
+
+// A short, nearly straight path: the SE(3) alignment's rotation about the path
+// rests on 1 cm of position noise, so the rotation ATE is the alignment's
+// error. The command warns and says so in metrics.json; a curved path with
+// real orientation errors does not warn.
+TEST(Evaluate, WarnsWhenTheAlignmentDominatesTheRotationAte) {
+  TempDir dir;
+  std::mt19937 rng(5);
+  std::normal_distribution<double> noise(0.0, 0.01);
+  std::vector<Pose> line;
+  for (int k = 0; k < 40; ++k) {
+    line.push_back({1000LL * 1000000000LL + k * 100000000LL, Vec3(0.1 * k, 0.0, 1.0),
+                    so3::Exp(Vec3(0.0, 0.0, 0.02 * k))});
+  }
+  std::vector<Pose> line_est = line;
+  for (auto& x : line_est) x.p += Vec3(noise(rng), noise(rng), noise(rng));
+  WriteTumFile(dir.File("line.txt"), line);
+  WriteTumFile(dir.File("line_est.txt"), line_est);
+  int code = 0;
+  std::string out = Evaluate("--reference " + dir.File("line.txt") + " --estimate " +
+                                 dir.File("line_est.txt") + " --output_path " + dir.File("line"),
+                             &code);
+  ASSERT_EQ(code, 0) << out;
+  EXPECT_NE(out.find("[W "), std::string::npos) << out;
+  EXPECT_NE(out.find("rotation ATE"), std::string::npos) << out;
+  EXPECT_NE(out.find("dominated by the se3 alignment"), std::string::npos) << out;
+  nlohmann::json m = ReadJson(dir.File("line/metrics.json"));
+  EXPECT_TRUE(m["alignment_conditioning"]["rotation_ate_dominated_by_alignment"].get<bool>());
+  EXPECT_GT(std::abs(m["alignment_conditioning"]["weak_axis"][0].get<double>()), 0.99);
+
+  const std::vector<Pose> ref = Path(300);
+  std::vector<Pose> est = ref;
+  std::normal_distribution<double> tilt(0.0, 0.01);
+  for (auto& x : est) {
+    x.p += Vec3(noise(rng), noise(rng), noise(rng));
+    x.q = x.q * so3::Exp(Vec3(tilt(rng), tilt(rng), tilt(rng)));
+  }
+  WriteTumFile(dir.File("ref.txt"), ref);
+  WriteTumFile(dir.File("est.txt"), est);
+  out = Evaluate("--reference " + dir.File("ref.txt") + " --estimate " + dir.File("est.txt") +
+                     " --output_path " + dir.File("curve"),
+                 &code);
+  ASSERT_EQ(code, 0) << out;
+  EXPECT_EQ(out.find("dominated"), std::string::npos) << out;
+  m = ReadJson(dir.File("curve/metrics.json"));
+  EXPECT_FALSE(m["alignment_conditioning"]["rotation_ate_dominated_by_alignment"].get<bool>());
+}
+
+// The output folder is checked before the evaluation, and an earlier output
+// is replaced only with --overwrite 1.
+TEST(Evaluate, OutputFolderIsCheckedFirstAndReplacedOnlyOnRequest) {
+  TempDir dir;
+  WriteTumFile(dir.File("ref.txt"), Path(50));
+  const std::string args =
+      "--reference " + dir.File("ref.txt") + " --estimate " + dir.File("ref.txt");
+  test::WriteText(dir.File("file"), "x");
+  int code = 0;
+  std::string out = Evaluate(args + " --output_path " + dir.File("file/out"), &code);
+  EXPECT_EQ(code, 1) << out;
+  EXPECT_NE(out.find(dir.File("file/out")), std::string::npos) << out;
+  EXPECT_EQ(out.find("ATE translation"), std::string::npos) << out;  // nothing evaluated
+  ASSERT_EQ((Evaluate(args + " --output_path " + dir.File("out"), &code), code), 0);
+  out = Evaluate(args + " --output_path " + dir.File("out"), &code);
+  EXPECT_EQ(code, 2) << out;
+  EXPECT_NE(out.find("--overwrite 1"), std::string::npos) << out;
+  out = Evaluate(args + " --output_path " + dir.File("out") + " --overwrite 1", &code);
+  EXPECT_EQ(code, 0) << out;
 }
 
 }  // namespace

@@ -99,6 +99,81 @@ TEST(GlobalMapperCommand, BadInputsFailCleanly) {
   EXPECT_EQ(rc, 2) << out;
 }
 
+// The output folder is checked before the work: an unusable --output_path
+// fails at once, before the database is even read.
+TEST(GlobalMapperCommand, UnwritableOutputFailsBeforeTheWork) {
+  test::TempDir dir;
+  SyntheticDatasetOptions o;
+  o.num_frames = 5;
+  WriteSyntheticDatabase(SynthesizeDataset(o), dir.File("db.db"));
+  test::WriteText(dir.File("file"), "x");
+  int rc = 0;
+  const std::string out = Lisfm("global_mapper --database_path " + dir.File("db.db") +
+                                    " --output_path " + dir.File("file/sparse"),
+                                &rc);
+  EXPECT_EQ(rc, 1) << out;
+  EXPECT_NE(out.find(dir.File("file/sparse")), std::string::npos) << out;
+  EXPECT_EQ(out.find("view graph"), std::string::npos) << out;  // no stage ran
+}
+
+// Dropped frames are reported on the terminal with the reason, not only in
+// the summary JSON.
+TEST(GlobalMapperCommand, DroppedFramesAreWarnedWithTheReason) {
+  test::TempDir dir;
+  SyntheticDatasetOptions o;
+  o.num_frames = 8;
+  o.num_points = 600;
+  WriteSyntheticDatabase(SynthesizeDataset(o), dir.File("db.db"));
+  int rc = 0;
+  // More observations than any frame has: every frame is dropped after BA.
+  const std::string out = Lisfm("global_mapper --database_path " + dir.File("db.db") +
+                                    " --output_path " + dir.File("sparse") +
+                                    " --Mapper.min_frame_observations 100000",
+                                &rc);
+  EXPECT_EQ(rc, 1) << out;  // no model
+  EXPECT_NE(out.find("dropped frame image_0001.png: it sees"), std::string::npos) << out;
+  EXPECT_NE(out.find("fewer than Mapper.min_frame_observations = 100000"), std::string::npos)
+      << out;
+  // Small view-graph components are named as well.
+  const std::string small = Lisfm("global_mapper --database_path " + dir.File("db.db") +
+                                      " --output_path " + dir.File("sparse2") +
+                                      " --Mapper.min_component_frames 100",
+                                  &rc);
+  EXPECT_NE(small.find("8 frame(s) not reconstructed"), std::string::npos) << small;
+  EXPECT_NE(small.find("min_component_frames = 100"), std::string::npos) << small;
+}
+
+// One image with a wrong prior focal length (its own camera, 10x the true
+// one, as a bad EXIF entry gives): its frame is dropped, and the warning
+// blames the focal length against what bundle adjustment gave the others.
+TEST(GlobalMapperCommand, DroppedFrameWithAWrongFocalLengthSaysSo) {
+  test::TempDir dir;
+  SyntheticDatasetOptions o;
+  o.num_frames = 10;
+  o.pixel_noise = 0.5;
+  const SyntheticDataset dataset = SynthesizeDataset(o);
+  WriteSyntheticDatabase(dataset, dir.File("db.db"));
+  {
+    Database database(dir.File("db.db"), Database::OpenMode::kReadWrite);
+    Camera wrong = dataset.cameras.begin()->second;
+    wrong.params[0] *= 10;
+    wrong.params[1] *= 10;
+    const camera_t wrong_id = database.WriteCamera(wrong);
+    DbImage image = database.ReadImage(4);
+    image.camera_id = wrong_id;
+    database.UpdateImage(image);
+  }
+  int rc = 0;
+  const std::string out = Lisfm("global_mapper --database_path " + dir.File("db.db") +
+                                    " --output_path " + dir.File("sparse"),
+                                &rc);
+  EXPECT_EQ(rc, 0) << out;
+  EXPECT_NE(out.find("dropped frame image_0004.png"), std::string::npos) << out;
+  EXPECT_NE(out.find("the registered cameras of this image size (a wrong EXIF/prior focal"),
+            std::string::npos)
+      << out;
+}
+
 // Real images: stock COLMAP extracts and matches (reduced SIFT settings to keep
 // the test short), our mapper reconstructs, and the cameras agree with the
 // reference model shipped with the data.

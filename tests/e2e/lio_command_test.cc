@@ -5,6 +5,7 @@
 #include <fstream>
 
 #include "core/file_utils.h"
+#include "core/io/cloud_io.h"
 #include "core/rig.h"
 #include "sim/simulator.h"
 #include "tests/common/test_utils.h"
@@ -56,6 +57,75 @@ TEST_F(LioCommandTest, RunsAndWritesOutputs) {
   }
   EXPECT_NE(out.find("lio summary"), std::string::npos) << out;
   EXPECT_FALSE(DirExists(o + "/keyframes.tmp"));
+  EXPECT_TRUE(FileExists(o + "/" + kOutputMarkerName));
+  // The map keeps the measured intensities (the simulator's are 0..255 from
+  // the surface albedo and incidence, never all zero).
+  const PointCloud map = ReadPcd(o + "/map.pcd");
+  ASSERT_GT(map.size(), 100u);
+  size_t with_intensity = 0;
+  for (const LidarPoint& p : map.points) with_intensity += p.intensity > 0 ? 1 : 0;
+  EXPECT_GT(with_intensity, map.size() / 2);
+}
+
+// Like `lisfm simulate`: an existing output is replaced only with --overwrite 1,
+// and only when lisfm wrote it.
+TEST_F(LioCommandTest, ExistingOutputFolders) {
+  const std::string base = test::LisfmBinary() + " lio --input_path " + dir_->File("seq") +
+                           " --max_scans 12 --output_path ";
+  const std::string o = dir_->File("again");
+  std::string out;
+  ASSERT_EQ(test::RunCommand(base + o, &out), 0) << out;
+  EXPECT_EQ(test::RunCommand(base + o, &out), 2) << out;
+  EXPECT_NE(out.find("--overwrite 1"), std::string::npos) << out;
+  ASSERT_EQ(test::RunCommand(base + o + " --overwrite 1", &out), 0) << out;
+  EXPECT_TRUE(FileExists(o + "/trajectory.txt"));
+
+  const std::string mine = dir_->File("not_lisfm");
+  CreateDirs(mine);
+  test::WriteText(mine + "/notes.txt", "mine");
+  EXPECT_EQ(test::RunCommand(base + mine + " --overwrite 1", &out), 2) << out;
+  EXPECT_NE(out.find("lisfm did not write"), std::string::npos) << out;
+  EXPECT_EQ(ReadFile(mine + "/notes.txt"), "mine");
+  EXPECT_FALSE(FileExists(mine + "/trajectory.txt"));
+
+  const std::string file = dir_->File("a_file");
+  test::WriteText(file, "x");
+  EXPECT_EQ(test::RunCommand(base + file + " --overwrite 1", &out), 2) << out;
+  EXPECT_NE(out.find("is a file"), std::string::npos) << out;
+}
+
+// The output location is checked before the work: nothing is read or processed.
+TEST_F(LioCommandTest, UnwritableOutputFailsBeforeTheWork) {
+  const std::string file = dir_->File("plain_file");
+  test::WriteText(file, "x");
+  std::string out;
+  EXPECT_EQ(test::RunCommand(test::LisfmBinary() + " lio --input_path " + dir_->File("seq") +
+                                 " --output_path " + file + "/out",
+                             &out),
+            1);
+  EXPECT_NE(out.find(file + "/out"), std::string::npos) << out;
+  EXPECT_EQ(out.find("lio: reading"), std::string::npos) << out;
+}
+
+// A corrupt scan in the middle of the sequence: the run fails naming the file
+// and leaves no output folder, no temporary folder and no keyframes.tmp/.
+TEST_F(LioCommandTest, FailureMidwayLeavesNoOutput) {
+  const auto index = SplitString(ReadFile(dir_->File("seq/lidar0/data.csv")), "\n");
+  ASSERT_GT(index.size(), 10u);
+  const std::string middle = SplitString(index[index.size() / 2], ",").at(1);
+  const std::string seq =
+      BrokenCopy("bad_pcd", "lidar0/data/" + middle,
+                 [](const std::string& t) { return t.substr(0, t.size() / 2); });
+  const std::string parent = dir_->File("midway");
+  CreateDirs(parent);
+  std::string out;
+  EXPECT_EQ(test::RunCommand(test::LisfmBinary() + " lio --input_path " + seq +
+                                 " --output_path " + parent + "/lio",
+                             &out),
+            1)
+      << out;
+  EXPECT_NE(out.find(middle), std::string::npos) << out;
+  EXPECT_TRUE(fs::is_empty(parent)) << "left behind: " << fs::directory_iterator(parent)->path();
 }
 
 TEST_F(LioCommandTest, MalformedImuNamesFileAndLine) {

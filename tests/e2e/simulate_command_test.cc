@@ -38,5 +38,21 @@ TEST(SimulateCommand, BadConfigurationFailsClearly) {
   EXPECT_FALSE(fs::exists(dir.File("o")));
 }
 
+// --overwrite 1 replaces only a folder lisfm wrote: a user's folder is refused
+// before any simulation work, and left as it was.
+TEST(SimulateCommand, OverwriteNeverRemovesAFolderLisfmDidNotWrite) {
+  test::TempDir dir;
+  fs::create_directories(dir.File("mine"));
+  test::WriteText(dir.File("mine/notes.txt"), "keep me");
+  std::string out;
+  EXPECT_EQ(test::RunCommand(test::LisfmBinary() + " simulate --duration 2 --camera_rate 0 " +
+                                 "--output_path " + dir.File("mine") + " --overwrite 1",
+                             &out),
+            2);
+  EXPECT_NE(out.find("lisfm did not write"), std::string::npos) << out;
+  EXPECT_EQ(out.find("scene and motion"), std::string::npos) << out;
+  EXPECT_TRUE(fs::exists(dir.File("mine/notes.txt")));
+}
+
 }  // namespace
 }  // namespace lisfm
