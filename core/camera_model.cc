@@ -1,5 +1,7 @@
 #include "core/camera_model.h"
 
+#include <algorithm>
+#include <array>
 #include <cmath>
 
 #include <fmt/format.h>
@@ -9,51 +11,33 @@
 namespace lisfm {
 namespace {
 
-// Newton iterations stop when the residual (normalized image coordinates or
-// radians) is below kSolveTolerance; a result counts as converged below
-// kConvergedTolerance (the 1e-10 of the contract).
-constexpr double kSolveTolerance = 1e-14;
-constexpr double kConvergedTolerance = 1e-10;
-constexpr int kMaxIterations = 100;
 // The invertibility of a distortion polynomial is checked at this many
 // equally spaced samples of [0, r] (the derivatives are polynomials of degree
 // <= 4 in r^2, so 8 samples catch every sign change but a pair of close roots).
 constexpr int kMonotonicSamples = 8;
 
-// Radtan distortion of normalized coordinates m and its 2x2 Jacobian.
-Vec2 RadtanDistort(const std::vector<double>& k,
-                  const Vec2& m,
-                  Eigen::Matrix2d* jacobian) {
-  const double k1 = k[0], k2 = k[1], p1 = k[2], p2 = k[3];
-  const double x = m.x(), y = m.y();
-  const double r2 = x * x + y * y;
-  const double radial = 1.0 + k1 * r2 + k2 * r2 * r2;
-  const Vec2 d(x * radial + 2.0 * p1 * x * y + p2 * (r2 + 2.0 * x * x),
-               y * radial + p1 * (r2 + 2.0 * y * y) + 2.0 * p2 * x * y);
-  if (jacobian != nullptr) {
-    const double dradial_dr2 = k1 + 2.0 * k2 * r2;
-    (*jacobian)(0, 0) = radial + 2.0 * x * x * dradial_dr2 + 2.0 * p1 * y + 6.0 * p2 * x;
-    (*jacobian)(0, 1) = 2.0 * x * y * dradial_dr2 + 2.0 * p1 * x + 2.0 * p2 * y;
-    (*jacobian)(1, 0) = (*jacobian)(0, 1);
-    (*jacobian)(1, 1) = radial + 2.0 * y * y * dradial_dr2 + 6.0 * p1 * y + 2.0 * p2 * x;
+// fx, fy, cx, cy, k1..k4 (zeros without distortion): the parameters of
+// CameraModel::ModelId() without an allocation.
+std::array<double, 8> ParamArray(const CameraModel& camera) {
+  std::array<double, 8> params = {camera.fx, camera.fy, camera.cx, camera.cy, 0.0, 0.0, 0.0, 0.0};
+  if (camera.distortion != DistortionModel::kNone) {
+    THROW_CHECK_EQ(camera.distortion_coeffs.size(), 4u);
+    std::copy(camera.distortion_coeffs.begin(), camera.distortion_coeffs.end(), params.begin() + 4);
   }
-  return d;
+  return params;
 }
 
-// d/dr of r (1 + k1 r^2 + k2 r^4).
+// d/dr of the radial part of radtan, r (1 + k1 r^2 + k2 r^4).
 double RadtanRadialSlope(const std::vector<double>& k, double r) {
   const double r2 = r * r;
   return 1.0 + 3.0 * k[0] * r2 + 5.0 * k[1] * r2 * r2;
 }
 
-// theta_d(theta) of the equidistant model and its derivative.
-double EquidistantThetaD(const std::vector<double>& k, double theta, double* slope) {
+// d/dtheta of the equidistant theta_d(theta) = theta (1 + k1 theta^2 + ... + k4 theta^8).
+double EquidistantSlope(const std::vector<double>& k, double theta) {
   const double t2 = theta * theta;
   const double t4 = t2 * t2, t6 = t4 * t2, t8 = t4 * t4;
-  if (slope != nullptr) {
-    *slope = 1.0 + 3.0 * k[0] * t2 + 5.0 * k[1] * t4 + 7.0 * k[2] * t6 + 9.0 * k[3] * t8;
-  }
-  return theta * (1.0 + k[0] * t2 + k[1] * t4 + k[2] * t6 + k[3] * t8);
+  return 1.0 + 3.0 * k[0] * t2 + 5.0 * k[1] * t4 + 7.0 * k[2] * t6 + 9.0 * k[3] * t8;
 }
 
 // True when slope(s) > 0 at kMonotonicSamples equally spaced s in (0, end].
@@ -100,105 +84,67 @@ int NumDistortionCoeffs(DistortionModel model) {
 
 bool CameraModel::Project(const Vec3& x_in_cam, Vec2* pixel, bool check_bounds) const {
   THROW_CHECK(pixel != nullptr);
+  const std::array<double, 8> params = ParamArray(*this);
   const double x = x_in_cam.x(), y = x_in_cam.y(), z = x_in_cam.z();
-  Vec2 m_distorted = Vec2::Zero();
   switch (distortion) {
     case DistortionModel::kNone:
+      if (!(z > 0.0)) return false;
+      PinholeCameraModel::ImgFromCam(params.data(), x / z, y / z, &pixel->x(), &pixel->y());
+      break;
     case DistortionModel::kRadtan: {
       if (!(z > 0.0)) return false;
-      const Vec2 m(x / z, y / z);
-      if (distortion == DistortionModel::kNone) {
-        m_distorted = m;
-      } else {
-        THROW_CHECK_EQ(distortion_coeffs.size(), 4u);
-        m_distorted = RadtanDistort(distortion_coeffs, m, nullptr);
-        const double r = m.norm();
-        if (!IncreasingUpTo(r, [&](double s) { return RadtanRadialSlope(distortion_coeffs, s); })) {
-          *pixel = Vec2(fx * m_distorted.x() + cx, fy * m_distorted.y() + cy);
-          return false;
-        }
+      const double u = x / z, v = y / z;
+      OpenCVCameraModel::ImgFromCam(params.data(), u, v, &pixel->x(), &pixel->y());
+      const double r = std::hypot(u, v);
+      if (!IncreasingUpTo(r, [&](double s) { return RadtanRadialSlope(distortion_coeffs, s); })) {
+        return false;
       }
       break;
     }
     case DistortionModel::kEquidistant: {
-      THROW_CHECK_EQ(distortion_coeffs.size(), 4u);
-      const double r = std::hypot(x, y);
-      if (r == 0.0 && !(z > 0.0)) return false;  // on the optical axis, behind
-      const double theta = std::atan2(r, z);
-      const double theta_d = EquidistantThetaD(distortion_coeffs, theta, nullptr);
-      // theta_d / r -> 1 / z on the optical axis (theta ~ r / z).
-      const double scale = r > 1e-300 ? theta_d / r : 1.0 / z;
-      m_distorted = Vec2(x * scale, y * scale);
-      *pixel = Vec2(fx * m_distorted.x() + cx, fy * m_distorted.y() + cy);
+      if (x == 0.0 && y == 0.0 && !(z > 0.0)) return false;  // on the optical axis, behind
+      double a, b;
+      const double theta = OpenCVFisheyeCameraModel::FisheyeFromRay(x, y, z, &a, &b);
+      OpenCVFisheyeCameraModel::ImgFromUndistorted(params.data(), a, b, &pixel->x(), &pixel->y());
       if (!(theta < M_PI)) return false;
-      double slope = 0.0;
-      if (!IncreasingUpTo(theta, [&](double t) {
-            EquidistantThetaD(distortion_coeffs, t, &slope);
-            return slope;
-          })) {
+      if (!IncreasingUpTo(theta,
+                          [&](double t) { return EquidistantSlope(distortion_coeffs, t); })) {
         return false;
       }
       break;
     }
   }
-  *pixel = Vec2(fx * m_distorted.x() + cx, fy * m_distorted.y() + cy);
   return !check_bounds || InImage(*pixel);
 }
 
 bool CameraModel::Unproject(const Vec2& pixel, Vec3* ray) const {
   THROW_CHECK(ray != nullptr);
-  const Vec2 m_distorted((pixel.x() - cx) / fx, (pixel.y() - cy) / fy);
+  const std::array<double, 8> params = ParamArray(*this);
   switch (distortion) {
-    case DistortionModel::kNone:
-      *ray = Vec3(m_distorted.x(), m_distorted.y(), 1.0).normalized();
+    case DistortionModel::kNone: {
+      double u, v;
+      PinholeCameraModel::UndistortedFromImg(params.data(), pixel.x(), pixel.y(), &u, &v);
+      *ray = Vec3(u, v, 1.0).normalized();
       return true;
+    }
     case DistortionModel::kRadtan: {
-      THROW_CHECK_EQ(distortion_coeffs.size(), 4u);
-      // Newton on d(m) = m_distorted, starting at m = m_distorted.
-      Vec2 m = m_distorted;
-      double residual = 0.0;
-      for (int it = 0; it < kMaxIterations; ++it) {
-        Eigen::Matrix2d jacobian;
-        const Vec2 error = RadtanDistort(distortion_coeffs, m, &jacobian) - m_distorted;
-        residual = error.norm();
-        if (residual < kSolveTolerance) break;
-        if (!(std::abs(jacobian.determinant()) > 1e-12)) break;
-        m -= jacobian.inverse() * error;
-        if (!m.allFinite()) break;
-      }
-      *ray = Vec3(m.x(), m.y(), 1.0).normalized();
-      return m.allFinite() && residual < kConvergedTolerance &&
-             IncreasingUpTo(m.norm(),
-                            [&](double s) { return RadtanRadialSlope(distortion_coeffs, s); });
+      double u, v;
+      const double residual =
+          OpenCVCameraModel::UndistortedFromImg(params.data(), pixel.x(), pixel.y(), &u, &v);
+      *ray = Vec3(u, v, 1.0).normalized();
+      return residual < kMaxUndistortionResidual && IncreasingUpTo(std::hypot(u, v), [&](double s) {
+               return RadtanRadialSlope(distortion_coeffs, s);
+             });
     }
     case DistortionModel::kEquidistant: {
-      THROW_CHECK_EQ(distortion_coeffs.size(), 4u);
-      const double theta_d = m_distorted.norm();
-      if (theta_d < 1e-300) {
-        *ray = Vec3(0.0, 0.0, 1.0);
-        return true;
-      }
-      // Newton on theta_d(theta) = theta_d, starting at theta = theta_d.
-      double theta = theta_d;
-      double residual = 0.0;
-      for (int it = 0; it < kMaxIterations; ++it) {
-        double slope = 0.0;
-        const double error = EquidistantThetaD(distortion_coeffs, theta, &slope) - theta_d;
-        residual = std::abs(error);
-        if (residual < kSolveTolerance) break;
-        if (!(slope > 1e-12)) break;
-        theta -= error / slope;
-        if (!std::isfinite(theta)) break;
-      }
-      const Vec2 direction = m_distorted / theta_d;
-      *ray = Vec3(std::sin(theta) * direction.x(), std::sin(theta) * direction.y(),
-                  std::cos(theta));
-      double slope = 0.0;
-      return std::isfinite(theta) && residual < kConvergedTolerance && theta >= 0.0 &&
-             theta < M_PI && IncreasingUpTo(theta, [&](double t) {
-               EquidistantThetaD(distortion_coeffs, t, &slope);
-               return slope;
-             });
+      double a, b;
+      const double residual =
+          OpenCVFisheyeCameraModel::UndistortedFromImg(params.data(), pixel.x(), pixel.y(), &a, &b);
+      OpenCVFisheyeCameraModel::RayFromFisheye(a, b, &ray->x(), &ray->y(), &ray->z());
+      const double theta = std::hypot(a, b);
+      return residual < kMaxUndistortionResidual && theta < M_PI &&
+             IncreasingUpTo(theta,
+                            [&](double t) { return EquidistantSlope(distortion_coeffs, t); });
     }
   }
   return false;
@@ -213,6 +159,24 @@ Vec3 CameraModel::Unproject(const Vec2& pixel) const {
 bool CameraModel::InImage(const Vec2& pixel) const {
   return pixel.x() >= -0.5 && pixel.x() < width - 0.5 && pixel.y() >= -0.5 &&
          pixel.y() < height - 0.5;
+}
+
+CameraModelId CameraModel::ModelId() const {
+  switch (distortion) {
+    case DistortionModel::kNone:
+      return CameraModelId::kPinhole;
+    case DistortionModel::kRadtan:
+      return CameraModelId::kOpenCV;
+    case DistortionModel::kEquidistant:
+      return CameraModelId::kOpenCVFisheye;
+  }
+  return CameraModelId::kInvalid;
+}
+
+std::vector<double> CameraModel::Params() const {
+  std::vector<double> params = {fx, fy, cx, cy};
+  params.insert(params.end(), distortion_coeffs.begin(), distortion_coeffs.end());
+  return params;
 }
 
 void CameraModel::Validate(const std::string& where) const {

@@ -4,22 +4,30 @@
 // Pixel convention: OpenCV/Kalibr (centre of the top-left pixel at (0, 0));
 // COLMAP's (0.5, 0.5) offset is applied only when writing COLMAP cameras.
 //
-// Models, with (x, y, z) a point in the camera frame (z forward, x right, y down):
-//  - none:        m = (x/z, y/z);  pixel = (fx m_x + cx, fy m_y + cy)
-//  - radtan:      m as above, r2 = |m|^2,
-//                 m' = m (1 + k1 r2 + k2 r2^2) + (2 p1 m_x m_y + p2 (r2 + 2 m_x^2),
-//                                                 p1 (r2 + 2 m_y^2) + 2 p2 m_x m_y)
-//                 (OpenCV cv::projectPoints with [k1 k2 p1 p2], Kalibr "radtan")
-//  - equidistant: theta = atan2(|(x, y)|, z),
-//                 theta_d = theta (1 + k1 theta^2 + k2 theta^4 + k3 theta^6 + k4 theta^8),
-//                 m' = theta_d (x, y) / |(x, y)|
-//                 (cv::fisheye::projectPoints, Kalibr "equidistant")
+// The formulas are those of core/camera_models.h, with (x, y, z) a point in
+// the camera frame (z forward, x right, y down):
+//  - none -> PINHOLE:       m = (x/z, y/z);  pixel = (fx m_x + cx, fy m_y + cy)
+//  - radtan -> OPENCV:      m as above, r2 = |m|^2,
+//                 m' = m (1 + k1 r2 + k2 r2^2) + (2 p1 m_x m_y + p2 (r2 + 2
+//                 m_x^2),
+//                                                 p1 (r2 + 2 m_y^2) + 2 p2 m_x
+//                                                 m_y)
+//                 (OpenCV cv::projectPoints with [k1 k2 p1 p2], Kalibr
+//                 "radtan")
+//  - equidistant -> OPENCV_FISHEYE: theta = atan2(|(x, y)|, z),
+//                 theta_d = theta (1 + k1 theta^2 + k2 theta^4 + k3 theta^6 +
+//                 k4 theta^8), m' = theta_d (x, y) / |(x, y)|
+//                 (cv::fisheye::projectPoints, Kalibr "equidistant"); rays
+//                 beyond 90 degrees project too.
+// This struct adds the rig's contract on top: rays behind the camera, the
+// invertible field of view and the image bounds.
 // Thread safety: all const methods are pure functions of the fields.
 #pragma once
 
 #include <string>
 #include <vector>
 
+#include "core/camera_models.h"
 #include "core/types.h"
 
 namespace lisfm {
@@ -56,6 +64,12 @@ struct CameraModel {
   // True when the pixel lies on the image area: -0.5 <= u < width - 0.5 and
   // -0.5 <= v < height - 0.5 (pixel centres at integer coordinates).
   bool InImage(const Vec2& pixel) const;
+  // The model of core/camera_models.h that evaluates this camera: none ->
+  // kPinhole, radtan -> kOpenCV, equidistant -> kOpenCVFisheye.
+  CameraModelId ModelId() const;
+  // That model's parameters: fx, fy, cx, cy (OpenCV pixel convention, as
+  // stored here), then distortion_coeffs.
+  std::vector<double> Params() const;
   // Checks sizes/values (positive resolution and focal lengths, finite values,
   // coefficient count of the model); throws InputError naming `where`
   // ("rig.yaml:cam2") and the field, e.g. "rig.yaml:cam2.intrinsics: ...".

@@ -5,9 +5,10 @@
 // (metres or any unit); pixels follow COLMAP's convention, the centre of the
 // top-left pixel is at (0.5, 0.5), so cx_colmap = cx_opencv + 0.5. Projection
 // goes camera frame -> normalised image plane (x/z, y/z) -> distortion ->
-// pixel, with COLMAP 3.8's formulas for each model. Unprojection inverts the
+// pixel, with COLMAP 3.8's formulas for each model: the model structs of
+// core/camera_models.h, dispatched by model id. Unprojection inverts the
 // distortion iteratively (Newton, numeric Jacobian) to ~1e-12 in the
-// normalised plane, or in closed form where the model has one.
+// normalised plane (core/camera_models.h IterativeUndistortion).
 //
 // Failures: unknown model ids/names and wrong parameter counts are user data
 // errors; VerifyParams() reports them and the file readers throw InputError.
@@ -19,28 +20,16 @@
 #include <vector>
 
 #include "core/camera_model.h"
+#include "core/camera_models.h"
 #include "core/types.h"
 
 namespace lisfm {
 namespace colmap {
 
-// COLMAP's model ids; the numeric values are part of the file formats.
-enum class CameraModelId : int {
-  kInvalid = -1,
-  kSimplePinhole = 0,        // f, cx, cy
-  kPinhole = 1,              // fx, fy, cx, cy
-  kSimpleRadial = 2,         // f, cx, cy, k
-  kRadial = 3,               // f, cx, cy, k1, k2
-  kOpenCV = 4,               // fx, fy, cx, cy, k1, k2, p1, p2
-  kOpenCVFisheye = 5,        // fx, fy, cx, cy, k1, k2, k3, k4
-  kFullOpenCV = 6,           // fx, fy, cx, cy, k1, k2, p1, p2, k3, k4, k5, k6
-  kFOV = 7,                  // fx, fy, cx, cy, omega
-  kSimpleRadialFisheye = 8,  // f, cx, cy, k
-  kRadialFisheye = 9,        // f, cx, cy, k1, k2
-  kThinPrismFisheye = 10,    // fx, fy, cx, cy, k1, k2, p1, p2, k3, k4, sx1, sy1
-};
-
-constexpr int kNumCameraModels = 11;
+// COLMAP's model ids (the numeric values are part of the file formats) and
+// their count, defined with the models in core/camera_models.h.
+using ::lisfm::CameraModelId;
+using ::lisfm::kNumCameraModels;
 
 bool ExistsCameraModel(int model_id);
 // "SIMPLE_PINHOLE", ... ; "" for an unknown id.
@@ -75,7 +64,9 @@ struct Camera {
 
   // Normalised image plane (x/z, y/z) -> pixel, with distortion.
   Vec2 ImgFromCam(const Vec2& normalized) const;
-  // Pixel -> normalised image plane (inverse of ImgFromCam).
+  // Pixel -> normalised image plane (inverse of ImgFromCam); NaN when the
+  // undistortion diverged (fisheye models: also for incidence angles >= 90
+  // degrees, which have no point on the normalised plane).
   Vec2 CamFromImg(const Vec2& pixel) const;
   // Camera frame -> pixel; false for points with z <= 0 (behind the camera).
   bool Project(const Vec3& x_in_cam, Vec2* pixel) const;

@@ -80,6 +80,19 @@ struct State {
   std::vector<Vec3> points;
 };
 
+// The problem's values (rotations normalised).
+State StateFromProblem(const SchurBaProblem& problem) {
+  State x;
+  for (const SchurBaFrame& f : problem.frames) {
+    x.q.push_back(f.rig_from_world_rotation.normalized());
+    x.R.push_back(x.q.back().toRotationMatrix());
+    x.t.push_back(f.rig_from_world_translation);
+  }
+  for (const SchurBaCamera& c : problem.cameras) x.params.push_back(c.params);
+  x.points = problem.points;
+  return x;
+}
+
 // d q / d dtheta for q <- Exp(dtheta) * q at dtheta = 0, rows (x, y, z, w).
 Eigen::Matrix<double, 4, 3> QuaternionTangentJacobian(const Quat& q) {
   Eigen::Matrix<double, 4, 3> J;
@@ -254,17 +267,7 @@ class Solver {
   }
 
  private:
-  State FromProblem() const {
-    State x;
-    for (const SchurBaFrame& f : problem_.frames) {
-      x.q.push_back(f.rig_from_world_rotation.normalized());
-      x.R.push_back(x.q.back().toRotationMatrix());
-      x.t.push_back(f.rig_from_world_translation);
-    }
-    for (const SchurBaCamera& c : problem_.cameras) x.params.push_back(c.params);
-    x.points = problem_.points;
-    return x;
-  }
+  State FromProblem() const { return StateFromProblem(problem_); }
 
   void ToProblem() {
     for (size_t f = 0; f < problem_.frames.size(); ++f) {
@@ -657,6 +660,26 @@ bool SchurBaOptions::Check() const {
   CHECK_OPTION_GE(parameter_tolerance, 0.0);
   CHECK_OPTION_MSG(num_threads, num_threads == -1 || num_threads >= 1, "-1 or >= 1");
   return true;
+}
+
+SchurBaObservationLinearisation LineariseSchurBaObservation(const SchurBaProblem& problem,
+                                                            int observation) {
+  THROW_CHECK(observation >= 0 && observation < static_cast<int>(problem.observations.size()));
+  const SchurBaObservation& o = problem.observations[observation];
+  THROW_CHECK(o.frame >= 0 && o.frame < static_cast<int>(problem.frames.size()));
+  THROW_CHECK(o.camera >= 0 && o.camera < static_cast<int>(problem.cameras.size()));
+  THROW_CHECK(o.point >= 0 && o.point < static_cast<int>(problem.points.size()));
+  const std::vector<int>& free_indices = problem.cameras[o.camera].free_indices;
+  THROW_CHECK_LE(free_indices.size(), static_cast<size_t>(kMaxFreeParams));
+  const State x = StateFromProblem(problem);
+  LinearisedObservation lin;
+  EvaluateObservation(problem, o, x, Loss(), &lin);
+  SchurBaObservationLinearisation result;
+  result.residual = lin.r;
+  result.d_frame = lin.j_frame;
+  result.d_point = lin.j_point;
+  result.d_free_params = lin.j_intrinsics.leftCols(free_indices.size());
+  return result;
 }
 
 SchurBaSummary SolveSchurBundleAdjustment(const SchurBaOptions& options,

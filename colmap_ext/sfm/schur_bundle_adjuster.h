@@ -100,5 +100,19 @@ struct SchurBaSummary {
 SchurBaSummary SolveSchurBundleAdjustment(const SchurBaOptions& options,
                                           SchurBaProblem* problem);
 
+// One observation's residual r = pixel - observed and its Jacobians in the
+// solver's parametrisation, without a robust loss (weight 1): the code path
+// of the solver's linearisation, exposed so that tests check its hand-written
+// Jacobians against automatic differentiation. Throws InternalError for an
+// invalid index.
+struct SchurBaObservationLinearisation {
+  Vec2 residual = Vec2::Zero();
+  Eigen::Matrix<double, 2, 6> d_frame;  // [dtheta; dt] of the observation's frame
+  Eigen::Matrix<double, 2, 3> d_point;
+  Eigen::MatrixXd d_free_params;  // 2 x free_indices.size(), in that order
+};
+SchurBaObservationLinearisation LineariseSchurBaObservation(const SchurBaProblem& problem,
+                                                            int observation);
+
 }  // namespace colmap
 }  // namespace lisfm
