@@ -475,7 +475,105 @@ void AddSimulatorOptions(OptionManager* options, sim::SimulatorOptions* sim) {
                      R::GreaterThan(0).AndAtMost(100));
   options->AddBool(
       "overwrite", &sim->overwrite, "replace an existing output folder");
+  options->AddString("error_sources",
+                     &sim->error_sources,
+                     "error sources beyond white noise and bias random walk, each sized by "
+                     "its section: calibration (true extrinsics and time offsets differ from "
+                     "rig.yaml; truth/rig.yaml), imu (scale factor, misalignment, "
+                     "temperature bias drift; truth/imu_errors.yaml); a comma list, all, or "
+                     "none (the clean recording)");
+  AddCalibrationErrorOptions(options, &sim->calibration_error);
+  AddImuErrorOptions(options, &sim->imu_error);
   options->AddStructCheck([sim] { return sim->Check(); });
+}
+
+void AddCalibrationErrorOptions(OptionManager* options, sim::CalibrationErrorOptions* calibration) {
+  options->AddDouble("CalibrationError.lidar_translation_sigma_m",
+                     &calibration->lidar_translation_sigma_m,
+                     "m, 1-sigma per axis of each LiDAR's true position minus rig.yaml's, "
+                     "IMU frame; RMS length sqrt(3) x this (HILTI 2022: calibration errors "
+                     "of a few mm; 0: off)",
+                     R::Between(0, 1));
+  options->AddDouble("CalibrationError.lidar_rotation_sigma_deg",
+                     &calibration->lidar_rotation_sigma_deg,
+                     "deg, 1-sigma per axis of each LiDAR's true orientation error about its "
+                     "own axes; RMS angle sqrt(3) x this, 0.2 deg (HILTI 2022 order; 0: off)",
+                     R::Between(0, 30));
+  options->AddDouble("CalibrationError.lidar_time_offset_sigma_s",
+                     &calibration->lidar_time_offset_sigma_s,
+                     "s, 1-sigma of each LiDAR's true minus rig.yaml time offset (order of "
+                     "the HILTI 2022 Kalibr timeshift_cam_imu, 1.7-1.9 ms; 0: off)",
+                     R::Between(0, 1));
+  options->AddDouble("CalibrationError.camera_translation_sigma_m",
+                     &calibration->camera_translation_sigma_m,
+                     "m, 1-sigma per axis of each camera's true position minus rig.yaml's, "
+                     "IMU frame (HILTI 2022: calibration errors of a few mm; 0: off)",
+                     R::Between(0, 1));
+  options->AddDouble("CalibrationError.camera_rotation_sigma_deg",
+                     &calibration->camera_rotation_sigma_deg,
+                     "deg, 1-sigma per axis of each camera's true orientation error about "
+                     "its own axes (RMS angle 0.2 deg; 0: off)",
+                     R::Between(0, 30));
+  options->AddDouble("CalibrationError.camera_time_offset_sigma_s",
+                     &calibration->camera_time_offset_sigma_s,
+                     "s, 1-sigma of the true minus rig.yaml timeshift_cam_imu shared by all "
+                     "cameras (one trigger; HILTI 2022 Kalibr timeshift_cam_imu 1.71-1.94 "
+                     "ms; 0: off)",
+                     R::Between(0, 1));
+  options->AddDouble("CalibrationError.camera_time_offset_spread_s",
+                     &calibration->camera_time_offset_spread_s,
+                     "s, 1-sigma per camera around the shared offset (std of the five HILTI "
+                     "2022 Kalibr timeshift_cam_imu values, 0.09 ms; 0: off)",
+                     R::Between(0, 1));
+  options->AddStructCheck([calibration] { return calibration->Check(); });
+}
+
+void AddImuErrorOptions(OptionManager* options, sim::ImuErrorOptions* imu) {
+  options->AddDouble("ImuError.gyro_scale_sigma_percent",
+                     &imu->gyro_scale_sigma_percent,
+                     "%, 1-sigma per axis of the gyroscope scale-factor error (BMI085 "
+                     "datasheet: sensitivity tolerance +-1 % typ, typ = 1 sigma; 0: off)",
+                     R::Between(0, 10));
+  options->AddDouble("ImuError.accel_scale_sigma_percent",
+                     &imu->accel_scale_sigma_percent,
+                     "%, 1-sigma per axis of the accelerometer scale-factor error (BMI085 "
+                     "datasheet: sensitivity tolerance +-0.5 % typ; 0: off)",
+                     R::Between(0, 10));
+  options->AddDouble("ImuError.gyro_cross_axis_sigma_percent",
+                     &imu->gyro_cross_axis_sigma_percent,
+                     "%, 1-sigma of each off-diagonal entry of the gyroscope misalignment "
+                     "(BMI085 datasheet: cross-axis sensitivity +-1 % typ; 0: off)",
+                     R::Between(0, 10));
+  options->AddDouble("ImuError.accel_cross_axis_sigma_percent",
+                     &imu->accel_cross_axis_sigma_percent,
+                     "%, 1-sigma of each off-diagonal entry of the accelerometer "
+                     "misalignment (BMI085 datasheet: cross-axis sensitivity +-0.5 % typ; "
+                     "0: off)",
+                     R::Between(0, 10));
+  options->AddDouble("ImuError.gyro_temperature_coefficient_dps_per_k",
+                     &imu->gyro_temperature_coefficient_dps_per_k,
+                     "deg/s/K, 1-sigma per axis of the gyroscope bias temperature "
+                     "coefficient (BMI085 datasheet: zero-rate offset TCO +-0.015 deg/s/K "
+                     "typ; 0: no drift)",
+                     R::Between(0, 1));
+  options->AddDouble("ImuError.accel_temperature_coefficient_mg_per_k",
+                     &imu->accel_temperature_coefficient_mg_per_k,
+                     "mg/K, 1-sigma per axis of the accelerometer bias temperature "
+                     "coefficient (BMI085 datasheet: zero-g offset TCO +-0.2 mg/K typ; 0: "
+                     "no drift)",
+                     R::Between(0, 10));
+  options->AddDouble("ImuError.temperature_sigma_k",
+                     &imu->temperature_sigma_k,
+                     "K, standard deviation of the IMU temperature around its mean, a "
+                     "smooth random process (a handheld device warming and moving between "
+                     "rooms; 0: no drift)",
+                     R::Between(0, 50));
+  options->AddDouble("ImuError.temperature_time_constant_s",
+                     &imu->temperature_time_constant_s,
+                     "s, time constant of the temperature process (autocorrelation "
+                     "(1 + l/tau) exp(-l/tau))",
+                     R::Between(1, 1e5));
+  options->AddStructCheck([imu] { return imu->Check(); });
 }
 
 void AddGlobalMapperOptions(OptionManager* options,

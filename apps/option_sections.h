@@ -52,8 +52,13 @@ void AddTrajectoryEvaluationOptions(OptionManager* options,
 void AddSfmEvaluationOptions(OptionManager* options,
                              colmap::SfmEvaluationOptions* eval);
 
-// No section (lisfm simulate); `output_path` is required.
+// No section (lisfm simulate); `output_path` is required. Also registers the
+// error source sizes: CalibrationError.* and ImuError.*.
 void AddSimulatorOptions(OptionManager* options, sim::SimulatorOptions* sim);
+// CalibrationError.*: the `calibration` error source of lisfm simulate.
+void AddCalibrationErrorOptions(OptionManager* options, sim::CalibrationErrorOptions* calibration);
+// ImuError.*: the `imu` error source of lisfm simulate.
+void AddImuErrorOptions(OptionManager* options, sim::ImuErrorOptions* imu);
 
 // Mapper.* and the stages: Priors.*, ViewGraph.*, RotationAveraging.*,
 // TranslationAveraging.*, Triangulation.* (tracks and triangulation),

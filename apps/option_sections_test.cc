@@ -121,6 +121,8 @@ TEST(OptionSections, SimulatorRangesAgreeWithCheck) {
         sim->output_path = "out";  // required
         AddSimulatorOptions(options, sim);
       });
+  ExpectRangesAgreeWithCheck<sim::CalibrationErrorOptions>(AddCalibrationErrorOptions);
+  ExpectRangesAgreeWithCheck<sim::ImuErrorOptions>(AddImuErrorOptions);
 }
 
 TEST(OptionSections, GlobalMapperRangesAgreeWithCheck) {

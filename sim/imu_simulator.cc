@@ -31,6 +31,7 @@ std::vector<ImuSample> SimulateImu(const SplineTrajectory& trajectory,
                                    TimestampNs start_ns,
                                    TimestampNs end_ns,
                                    const ImuSimOptions& options,
+                                   const ImuErrors* errors,
                                    std::vector<ImuBias>* biases) {
   THROW_CHECK_GT(noise.update_rate, 0.0);
   THROW_CHECK_OPTIONS(options);
@@ -49,16 +50,29 @@ std::vector<ImuSample> SimulateImu(const SplineTrajectory& trajectory,
   std::vector<ImuSample> samples;
   if (biases) biases->clear();
   const double period_ns = 1e9 / rate;
+  const Mat3 gyro_matrix = errors ? errors->gyro.Matrix() : Mat3::Identity();
+  const Mat3 accel_matrix = errors ? errors->accel.Matrix() : Mat3::Identity();
   for (int64_t i = 0;; ++i) {
     const TimestampNs t = start_ns + static_cast<TimestampNs>(std::llround(i * period_ns));
     if (t > end_ns) break;
     ImuSample m = ExactImu(trajectory, t);
+    Vec3 total_bias_g = bias_g, total_bias_a = bias_a;
+    if (errors) {
+      m.gyro = gyro_matrix * m.gyro;
+      m.accel = accel_matrix * m.accel;
+      const double dT = errors->temperature.At(t);
+      total_bias_g += dT * errors->gyro.temperature_coefficient;
+      total_bias_a += dT * errors->accel.temperature_coefficient;
+    }
     if (k > 0) {
-      m.gyro += bias_g + sigma_g * random_vec();
-      m.accel += bias_a + sigma_a * random_vec();
+      m.gyro += total_bias_g + sigma_g * random_vec();
+      m.accel += total_bias_a + sigma_a * random_vec();
+    } else if (errors) {
+      m.gyro += total_bias_g;
+      m.accel += total_bias_a;
     }
     samples.push_back(m);
-    if (biases) biases->push_back({t, bias_g, bias_a});
+    if (biases) biases->push_back({t, total_bias_g, total_bias_a});
     if (k > 0) {
       bias_g += walk_g * random_vec();
       bias_a += walk_a * random_vec();

@@ -5,13 +5,16 @@
 // white noise with discrete sigma_d = sigma_c * sqrt(rate); biases start at a
 // constant random offset and follow a random walk with per-sample step
 // sigma_bc * sqrt(1 / rate). All noise and biases scale with `noise_scale`
-// (0 = exact samples).
+// (0 = exact samples). Optional deterministic errors (sim/imu_errors.h: scale,
+// misalignment, temperature bias drift) enter as
+//   measured = M * exact + (random-walk bias + temperature bias) + noise.
 #pragma once
 
 #include <vector>
 
 #include "core/rig.h"
 #include "core/sensor_data.h"
+#include "sim/imu_errors.h"
 #include "sim/spline_trajectory.h"
 
 namespace lisfm {
@@ -34,12 +37,16 @@ struct ImuSimOptions {
 };
 
 // Samples at start_ns + k / noise.update_rate for every such time <= end_ns.
-// `biases` (optional) receives the true bias at every sample.
+// `errors` (optional) adds the errors of sim/imu_errors.h; without them the
+// samples are exactly those of the model above (the same random draws either
+// way). `biases` (optional) receives the true additive bias at every sample
+// (random walk plus, with `errors`, the temperature drift).
 std::vector<ImuSample> SimulateImu(const SplineTrajectory& trajectory,
                                    const ImuNoise& noise,
                                    TimestampNs start_ns,
                                    TimestampNs end_ns,
                                    const ImuSimOptions& options,
+                                   const ImuErrors* errors = nullptr,
                                    std::vector<ImuBias>* biases = nullptr);
 
 // Exact (noise-free) measurement at one time.

@@ -110,7 +110,7 @@ TEST(ImuSimulator, NoiseStatisticsMatchDensities) {
   ImuSimOptions options;
   options.seed = 9;
   std::vector<ImuBias> biases;
-  const auto m = SimulateImu(still, noise, 0, SecondsToNs(200.0), options, &biases);
+  const auto m = SimulateImu(still, noise, 0, SecondsToNs(200.0), options, nullptr, &biases);
   Eigen::Array3d sum_g = Eigen::Array3d::Zero(), sum_a = Eigen::Array3d::Zero();
   Eigen::Array3d sum_bg = Eigen::Array3d::Zero(), sum_ba = Eigen::Array3d::Zero();
   for (size_t i = 1; i < m.size(); ++i) {

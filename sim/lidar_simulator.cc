@@ -49,6 +49,8 @@ PointCloud LidarSimulator::SimulateScan(TimestampNs scan_start_ns, int64_t scan_
   std::normal_distribution<double> normal(0.0, options_.range_sigma * options_.noise_scale);
   const bool noisy = options_.noise_scale > 0;
   const double period_s = 1.0 / lidar_.scan_rate;
+  // IMU-clock time of the first firing: poses are evaluated from here.
+  const TimestampNs capture_start_ns = scan_start_ns + SecondsToNs(lidar_.time_offset_s);
   struct Raw {
     LidarPoint point;
     double t_s;  // since scan_start_ns
@@ -86,7 +88,7 @@ PointCloud LidarSimulator::SimulateScan(TimestampNs scan_start_ns, int64_t scan_
     for (int c = 0; c < columns; ++c) {
       const double t_s = period_s * c / columns;
       const SE3 world_from_lidar =
-          trajectory_.Pose(scan_start_ns + SecondsToNs(t_s)) * lidar_.imu_from_lidar;
+          trajectory_.Pose(capture_start_ns + SecondsToNs(t_s)) * lidar_.imu_from_lidar;
       const double az = 2 * M_PI * c / columns;
       const double cos_az = std::cos(az), sin_az = std::sin(az);
       const float origin[3] = {static_cast<float>(world_from_lidar.translation().x()),
@@ -130,7 +132,7 @@ PointCloud LidarSimulator::SimulateScan(TimestampNs scan_start_ns, int64_t scan_
       const Vec3 dir_lidar(std::cos(theta), std::sin(theta) * std::cos(phi),
                            std::sin(theta) * std::sin(phi));
       const SE3 world_from_lidar =
-          trajectory_.Pose(scan_start_ns + SecondsToNs(t_s)) * lidar_.imu_from_lidar;
+          trajectory_.Pose(capture_start_ns + SecondsToNs(t_s)) * lidar_.imu_from_lidar;
       const Vec3 dir_world = world_from_lidar.rotation() * dir_lidar;
       const RayHit hit = scene_.Intersect(world_from_lidar.translation(), dir_world, 0.0,
                                           lidar_.max_range + 1.0);

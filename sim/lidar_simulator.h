@@ -3,6 +3,9 @@
 // real. Points are returned in the LiDAR frame with the DESIGN.md time
 // convention: the scan stamp is the time of the first returned point and each
 // point's `t` is seconds since that stamp, inside [0, 1 / scan_rate).
+// Stamps are on the LiDAR's clock: a point stamped t was captured at IMU time
+// t + lidar.time_offset_s (Kalibr sense), so a simulator given the true
+// RigLidar of a recording makes data whose stamps carry its time offset.
 //
 // Spinning (HESAI PandarXT-32-like): `rings` lasers spread from -16 deg at 1
 // deg spacing (32 rings: -16..+15 deg), 2000 azimuth steps per revolution
@@ -50,8 +53,9 @@ class LidarSimulator {
                  const TextureOptions& texture,
                  const LidarSimOptions& options);
 
-  // The scan that starts at `scan_start_ns` (first firing) and covers one
-  // period 1 / lidar.scan_rate. `scan_index` seeds the noise (deterministic).
+  // The scan that starts at `scan_start_ns` (first firing, LiDAR clock) and
+  // covers one period 1 / lidar.scan_rate. `scan_index` seeds the noise
+  // (deterministic).
   PointCloud SimulateScan(TimestampNs scan_start_ns, int64_t scan_index) const;
 
   // Elevation of ring r (rad).

@@ -3,7 +3,9 @@
 #include <gtest/gtest.h>
 
 #include "core/errors.h"
+#include "sim/calibration_errors.h"
 #include "sim/camera_simulator.h"
+#include "sim/imu_errors.h"
 #include "sim/imu_simulator.h"
 #include "sim/lidar_simulator.h"
 #include "sim/motion.h"
@@ -35,6 +37,12 @@ TEST(SimOptionsCheck, Simulator) {
           {"supersampling", [](S* o) { o->supersampling = 9; }},
           {"rgbd_rate", [](S* o) { o->rgbd_rate = 0.0; }},
           {"lidars", [](S* o) { o->lidars = "spinning,velodyne"; }},
+          {"error_sources", [](S* o) { o->error_sources = "imu,weather"; }},
+          {"error_sources", [](S* o) { o->error_sources = "all,imu"; }},
+          {"error_sources", [](S* o) { o->error_sources = ""; }},
+          {"calibration_error.lidar_rotation_sigma_deg",
+           [](S* o) { o->calibration_error.lidar_rotation_sigma_deg = -0.1; }},
+          {"imu_error.temperature_sigma_k", [](S* o) { o->imu_error.temperature_sigma_k = -1.0; }},
       },
       valid);
   valid.trajectory_path = "motion.txt";
@@ -67,6 +75,32 @@ TEST(SimOptionsCheck, Sensors) {
       {"noise_scale", [](C* o) { o->noise_scale = -1.0; }},
       {"vignetting", [](C* o) { o->vignetting = 1.5; }},
       {"max_range", [](C* o) { o->max_range = 0.0; }},
+  });
+}
+
+TEST(SimOptionsCheck, ErrorSources) {
+  using C = CalibrationErrorOptions;
+  ExpectCheckRejects<C>({
+      {"lidar_translation_sigma_m", [](C* o) { o->lidar_translation_sigma_m = -1e-3; }},
+      {"lidar_rotation_sigma_deg", [](C* o) { o->lidar_rotation_sigma_deg = 31.0; }},
+      {"lidar_time_offset_sigma_s", [](C* o) { o->lidar_time_offset_sigma_s = -1e-3; }},
+      {"camera_translation_sigma_m", [](C* o) { o->camera_translation_sigma_m = 2.0; }},
+      {"camera_rotation_sigma_deg", [](C* o) { o->camera_rotation_sigma_deg = -1.0; }},
+      {"camera_time_offset_sigma_s", [](C* o) { o->camera_time_offset_sigma_s = 1.5; }},
+      {"camera_time_offset_spread_s", [](C* o) { o->camera_time_offset_spread_s = -1e-4; }},
+  });
+  using I = ImuErrorOptions;
+  ExpectCheckRejects<I>({
+      {"gyro_scale_sigma_percent", [](I* o) { o->gyro_scale_sigma_percent = -1.0; }},
+      {"accel_scale_sigma_percent", [](I* o) { o->accel_scale_sigma_percent = 11.0; }},
+      {"gyro_cross_axis_sigma_percent", [](I* o) { o->gyro_cross_axis_sigma_percent = -1.0; }},
+      {"accel_cross_axis_sigma_percent", [](I* o) { o->accel_cross_axis_sigma_percent = 11.0; }},
+      {"gyro_temperature_coefficient_dps_per_k",
+       [](I* o) { o->gyro_temperature_coefficient_dps_per_k = -0.01; }},
+      {"accel_temperature_coefficient_mg_per_k",
+       [](I* o) { o->accel_temperature_coefficient_mg_per_k = -0.1; }},
+      {"temperature_sigma_k", [](I* o) { o->temperature_sigma_k = 51.0; }},
+      {"temperature_time_constant_s", [](I* o) { o->temperature_time_constant_s = 0.5; }},
   });
 }
 

@@ -11,6 +11,7 @@
 #include <random>
 #include <sstream>
 
+#include <fmt/format.h>
 #include <opencv2/imgcodecs.hpp>
 #include <tbb/parallel_for.h>
 
@@ -102,7 +103,74 @@ bool IsLidarList(const std::string& lidars) {
   return true;
 }
 
+bool IsErrorSource(const std::string& token) {
+  const std::vector<std::string>& names = ErrorSourceNames();
+  return std::find(names.begin(), names.end(), token) != names.end();
+}
+
+// "all", "none", or a comma list of error source tokens.
+bool IsErrorSourceList(const std::string& list) {
+  const std::vector<std::string> tokens = SplitList(list);
+  if (tokens.empty()) return false;
+  for (const std::string& t : tokens) {
+    if (t == "all" || t == "none") {
+      if (tokens.size() != 1) return false;
+    } else if (!IsErrorSource(t)) {
+      return false;
+    }
+  }
+  return true;
+}
+
+std::string ErrorSourceRequirement() {
+  std::string names;
+  for (const std::string& n : ErrorSourceNames()) names += (names.empty() ? "" : ", ") + n;
+  return "all, none, or a comma list of " + names;
+}
+
+// A source named explicitly (not through "all") must have a sensor to act on.
+void CheckErrorSourcesHaveSensors(const SimulatorOptions& options, const Rig& rig) {
+  for (const std::string& t : SplitList(options.error_sources)) {
+    if (t == "calibration" && rig.lidars.empty() &&
+        (rig.cameras.empty() || options.camera_rate <= 0)) {
+      throw UsageError(
+          "--error_sources calibration: the simulated rig has no LiDAR and no "
+          "camera to miscalibrate (--lidars none, and no cameras or "
+          "--camera_rate 0)");
+    }
+  }
+}
+
+// The calibration errors as one log line: per sensor mm, deg, ms.
+std::string DescribeCalibrationErrors(const Rig& rig, const CalibrationErrors& errors) {
+  std::string text;
+  auto add = [&](const std::string& name, const SensorCalibrationError& e) {
+    text += fmt::format("{}{} {:.1f} mm {:.2f} deg {:.2f} ms",
+                        text.empty() ? "" : "; ",
+                        name,
+                        1e3 * e.translation_m.norm(),
+                        e.rotation_rad.norm() * 180 / M_PI,
+                        1e-6 * static_cast<double>(e.time_offset_ns));
+  };
+  for (size_t i = 0; i < errors.lidars.size(); ++i) add(rig.lidars[i].name, errors.lidars[i]);
+  for (size_t i = 0; i < errors.cameras.size(); ++i) add(rig.cameras[i].name, errors.cameras[i]);
+  return text;
+}
+
 }  // namespace
+
+const std::vector<std::string>& ErrorSourceNames() {
+  static const std::vector<std::string> kNames = {"calibration", "imu"};
+  return kNames;
+}
+
+bool ErrorSourceEnabled(const std::string& error_sources, const std::string& source) {
+  THROW_CHECK_MSG(IsErrorSource(source), "unknown error source '" << source << "'");
+  for (const std::string& t : SplitList(error_sources)) {
+    if (t == "all" || t == source) return true;
+  }
+  return false;
+}
 
 bool SimulatorOptions::Check() const {
   CHECK_OPTION_MSG(output_path, !output_path.empty(), "a folder name (required)");
@@ -114,6 +182,9 @@ bool SimulatorOptions::Check() const {
   CHECK_OPTION_MSG(supersampling, supersampling >= 1 && supersampling <= 8, "in [1, 8]");
   CHECK_OPTION_MSG(rgbd_rate, rgbd_rate > 0 && rgbd_rate <= 100, "in (0, 100] Hz");
   CHECK_OPTION_MSG(lidars, IsLidarList(lidars), "a comma list of spinning, livox, none");
+  CHECK_OPTION_MSG(error_sources, IsErrorSourceList(error_sources), ErrorSourceRequirement());
+  CHECK_OPTION_NESTED(calibration_error);
+  CHECK_OPTION_NESTED(imu_error);
   return true;
 }
 
@@ -144,10 +215,31 @@ SimulationSummary Simulate(const SimulatorOptions& options,
   THROW_CHECK_OPTIONS(options);
   const auto t_start = std::chrono::steady_clock::now();
   SimulationSummary summary;
+  const Rig rig = PrepareRig(input_rig, options.lidars);
+  CheckErrorSourcesHaveSensors(options, rig);
   // Before the work: refuses an unusable output location at once.
   OutputFolder output(options.output_path, options.overwrite);
   const std::string& temp = output.path();
-  const Rig rig = PrepareRig(input_rig, options.lidars);
+  // Error sources in effect (every one is off with noise_scale 0).
+  const bool calibration_on =
+      options.noise_scale > 0 && ErrorSourceEnabled(options.error_sources, "calibration");
+  const bool imu_errors_on =
+      options.noise_scale > 0 && ErrorSourceEnabled(options.error_sources, "imu");
+  // The rig the data are made with: `rig` (what rig.yaml says) unless calibration is on.
+  Rig true_rig = rig;
+  CalibrationErrors calibration;
+  calibration.lidars.resize(rig.lidars.size());
+  calibration.cameras.resize(rig.cameras.size());
+  if (calibration_on) {
+    calibration = DrawCalibrationErrors(options.calibration_error,
+                                        options.noise_scale,
+                                        static_cast<uint64_t>(options.seed),
+                                        rig.lidars.size(),
+                                        rig.cameras.size());
+    true_rig = ApplyCalibrationErrors(rig, calibration);
+    LogInfo("calibration errors (true - rig.yaml): {}",
+            DescribeCalibrationErrors(rig, calibration));
+  }
 
   // ---- scene and motion ----
   LogStage("scene and motion");
@@ -210,9 +302,23 @@ SimulationSummary Simulate(const SimulatorOptions& options,
   summary.seconds_scene = Seconds(t_start);
 
   // ---- rig and scene ----
-  WriteRigYaml(JoinPaths(temp, "rig.yaml"), rig,
-               "lisfm simulate: the rig of this sequence (time offsets 0: stamps are on the "
-               "IMU clock)");
+  if (!calibration_on) {
+    WriteRigYaml(JoinPaths(temp, "rig.yaml"),
+                 rig,
+                 "lisfm simulate: the rig of this sequence (time offsets 0: stamps are on the "
+                 "IMU clock)");
+  } else {
+    WriteRigYaml(JoinPaths(temp, "rig.yaml"),
+                 rig,
+                 "lisfm simulate: the calibration a user of this sequence has (time offsets 0:\n"
+                 "stamps are read on the IMU clock). The data were made with truth/rig.yaml.");
+    CreateDirs(JoinPaths(temp, "truth"));
+    WriteRigYaml(JoinPaths(temp, "truth/rig.yaml"),
+                 true_rig,
+                 "lisfm simulate: the TRUE calibration this sequence was made with (error source\n"
+                 "calibration). A sensor stamp t was captured at IMU time\n"
+                 "t + (truth time offset - rig.yaml time offset).");
+  }
   scene->WritePly(JoinPaths(temp, "scene.ply"));
 
   // ---- ground truth (100 Hz) and control points ----
@@ -248,9 +354,19 @@ SimulationSummary Simulate(const SimulatorOptions& options,
     ImuSimOptions imu_options;
     imu_options.noise_scale = options.noise_scale;
     imu_options.seed = static_cast<uint64_t>(options.seed);
+    std::unique_ptr<ImuErrors> imu_errors;
+    if (imu_errors_on) {
+      imu_errors = std::make_unique<ImuErrors>(DrawImuErrors(options.imu_error,
+                                                             options.noise_scale,
+                                                             static_cast<uint64_t>(options.seed),
+                                                             start_ns,
+                                                             end_ns));
+      CreateDirs(JoinPaths(temp, "truth"));
+      WriteImuErrorsYaml(JoinPaths(temp, "truth/imu_errors.yaml"), *imu_errors);
+    }
     std::vector<ImuBias> biases;
     const std::vector<ImuSample> imu =
-        SimulateImu(trajectory, rig.imu, start_ns, end_ns, imu_options, &biases);
+        SimulateImu(trajectory, rig.imu, start_ns, end_ns, imu_options, imu_errors.get(), &biases);
     summary.num_imu = imu.size();
     CreateDirs(JoinPaths(temp, "imu0"));
     std::ostringstream s, b;
@@ -301,7 +417,8 @@ SimulationSummary Simulate(const SimulatorOptions& options,
   CpuAccumulator lidar_cast, lidar_write, camera_render, camera_write;
   t_phase = std::chrono::steady_clock::now();
   for (size_t k = 0; k < rig.lidars.size(); ++k) {
-    const RigLidar& lidar = rig.lidars[k];
+    // The true LiDAR: its extrinsic, and its time offset in the stamps.
+    const RigLidar& lidar = true_rig.lidars[k];
     const std::string dir = JoinPaths(temp, lidar.name);
     CreateDirs(JoinPaths(dir, "data"));
     LidarSimOptions lidar_options;
@@ -354,8 +471,10 @@ SimulationSummary Simulate(const SimulatorOptions& options,
     tbb::parallel_for(size_t{0}, frame_times.size() * num_cams, [&](size_t job) {
       const size_t f = job / num_cams, c = job % num_cams;
       const RigCamera& cam = rig.cameras[c];
+      // Captured at the true time with the true extrinsic; stamped frame_times[f].
       const SE3 world_from_cam =
-          trajectory.Pose(frame_times[f]) * cam.cam_from_imu.Inverse();
+          trajectory.Pose(frame_times[f] + calibration.cameras[c].time_offset_ns) *
+          true_rig.cameras[c].cam_from_imu.Inverse();
       const double c0 = ThreadCpuSeconds();
       const cv::Mat image =
           renderers[c]->Render(world_from_cam, static_cast<uint64_t>(options.seed) * 1000003 +

@@ -3,9 +3,22 @@
 // docs/FORMATS_sequence.md describes the folder as built).
 //
 // Frames and times: the world is the scene frame (z up, gravity -z); the body
-// is the IMU frame; all stamps are int64 ns on the IMU clock (camera and LiDAR
-// time offsets of the written rig.yaml are 0). Generated sequences start at
-// kDefaultStartNs; sequences driven by a TUM file keep its stamps.
+// is the IMU frame; all stamps are int64 ns, read on the IMU clock with the
+// written rig.yaml, whose camera and LiDAR time offsets are 0. Generated
+// sequences start at kDefaultStartNs; sequences driven by a TUM file keep its
+// stamps.
+//
+// Error sources (`error_sources`, each with its own sizes; all of them off
+// with noise_scale 0, and "none" gives the clean recording: white noise and
+// bias random walk only):
+//  - calibration (sim/calibration_errors.h): the LiDARs and cameras are
+//    simulated with true extrinsics and time offsets that differ from the
+//    written rig.yaml; truth/rig.yaml holds the true calibration. A sensor
+//    stamp t was captured at IMU time t + (truth offset - rig.yaml offset);
+//    poses outside the trajectory are those at its ends (generated walks
+//    start and end at rest).
+//  - imu (sim/imu_errors.h): scale factor, misalignment and temperature bias
+//    drift of the IMU; truth/imu_errors.yaml holds the drawn values.
 //
 // Output goes through core's OutputFolder: checked before the work, written
 // into `<output_path>.tmp-<pid>` and renamed at the end, so a failed run never
@@ -20,6 +33,8 @@
 
 #include "core/rig.h"
 #include "core/time.h"
+#include "sim/calibration_errors.h"
+#include "sim/imu_errors.h"
 
 namespace lisfm {
 namespace sim {
@@ -32,7 +47,7 @@ struct SimulatorOptions {
   double duration = 60.0;         // s; with a TUM file: at most its length (<= 0: all of it)
   double camera_rate = 2.0;       // Hz, rig frames per second (0 = no cameras)
   std::string lidars = "spinning";  // comma list of spinning, livox (or "none")
-  double noise_scale = 1.0;       // multiplies every sensor noise and bias (0 = exact)
+  double noise_scale = 1.0;         // multiplies every sensor noise, bias and error (0 = exact)
   int seed = 1;                   // scene layout, texture, motion and noise seed
   std::string output_path;        // the sequence folder to create
   int supersampling = 1;          // camera rays per pixel = n x n
@@ -40,9 +55,18 @@ struct SimulatorOptions {
   bool rgbd = false;              // add an RGB-D camera (rgbd0/)
   double rgbd_rate = 5.0;         // Hz
   bool overwrite = false;         // replace an earlier lisfm output folder at output_path
+  std::string error_sources = "all";          // comma list of ErrorSourceNames(), or all / none
+  CalibrationErrorOptions calibration_error;  // sizes of the `calibration` source
+  ImuErrorOptions imu_error;                  // sizes of the `imu` source
 
   bool Check() const;
 };
+
+// The error source tokens of SimulatorOptions::error_sources.
+const std::vector<std::string>& ErrorSourceNames();
+// True when `source` (one of ErrorSourceNames()) is named in `error_sources`
+// or it is "all". Throws InternalError for an unknown `source`.
+bool ErrorSourceEnabled(const std::string& error_sources, const std::string& source);
 
 struct SimulationSummary {
   std::string scene_type;

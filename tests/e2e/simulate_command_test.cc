@@ -38,6 +38,40 @@ TEST(SimulateCommand, BadConfigurationFailsClearly) {
   EXPECT_FALSE(fs::exists(dir.File("o")));
 }
 
+// Error sources: an unknown token, a negative size and a source for a sensor
+// the rig does not have are one clear usage error each, and leave no folder.
+TEST(SimulateCommand, BadErrorSourceConfigurationFailsClearly) {
+  test::TempDir dir;
+  const std::string bin = test::LisfmBinary();
+  const std::string common = " --duration 2 --camera_rate 0 --output_path " + dir.File("o");
+  std::string out;
+  EXPECT_EQ(test::RunCommand(bin + " simulate --error_sources imu,weather" + common, &out), 2);
+  EXPECT_NE(out.find("--error_sources imu,weather"), std::string::npos) << out;
+  EXPECT_NE(out.find("calibration"), std::string::npos) << out;  // lists the valid tokens
+  EXPECT_EQ(test::RunCommand(
+                bin + " simulate --CalibrationError.lidar_rotation_sigma_deg -1" + common, &out),
+            2);
+  EXPECT_NE(out.find("--CalibrationError.lidar_rotation_sigma_deg -1"), std::string::npos) << out;
+  EXPECT_EQ(test::RunCommand(bin + " simulate --ImuError.temperature_sigma_k -0.5" + common, &out),
+            2);
+  EXPECT_NE(out.find("--ImuError.temperature_sigma_k"), std::string::npos) << out;
+  EXPECT_EQ(
+      test::RunCommand(bin + " simulate --error_sources calibration --lidars none" + common, &out),
+      2);
+  EXPECT_NE(out.find("no LiDAR and no camera"), std::string::npos) << out;
+  EXPECT_EQ(out.find("scene and motion"), std::string::npos) << out;  // before any work
+  EXPECT_FALSE(fs::exists(dir.File("o")));
+  // -h documents every source and cites where its size comes from.
+  EXPECT_EQ(test::RunCommand(bin + " simulate -h", &out), 0);
+  for (const char* text : {"--error_sources",
+                           "--CalibrationError.camera_time_offset_sigma_s",
+                           "--ImuError.gyro_scale_sigma_percent",
+                           "BMI085 datasheet",
+                           "HILTI 2022"}) {
+    EXPECT_NE(out.find(text), std::string::npos) << text;
+  }
+}
+
 // --overwrite 1 replaces only a folder lisfm wrote: a user's folder is refused
 // before any simulation work, and left as it was.
 TEST(SimulateCommand, OverwriteNeverRemovesAFolderLisfmDidNotWrite) {
