@@ -8,6 +8,7 @@
 #include <numeric>
 
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 
 #include "apps/commands.h"
 #include "apps/option_sections.h"
@@ -48,6 +49,77 @@ std::vector<int> ParseLidarList(const std::string& text, size_t num_lidars) {
   return ids;
 }
 
+// Shortest round-trip decimal; -0 as 0 (as the rig.yaml writer does).
+std::string YamlNumber(double v) { return fmt::format("{}", v == 0.0 ? 0.0 : v); }
+
+std::string YamlMatrix(const std::string& indent, const Mat4& m) {
+  std::string out;
+  for (int r = 0; r < 4; ++r) {
+    out += fmt::format("{}- [{}, {}, {}, {}]\n", indent, YamlNumber(m(r, 0)), YamlNumber(m(r, 1)),
+                       YamlNumber(m(r, 2)), YamlNumber(m(r, 3)));
+  }
+  return out;
+}
+
+// calibration.yaml (docs/FORMATS.md): the online LiDAR–IMU calibration of the
+// used LiDARs next to the rig.yaml values it started from.
+std::string CalibrationYaml(const Rig& rig,
+                            const std::vector<int>& used,
+                            const std::vector<LidarCalibrationEstimate>& estimates) {
+  std::string out =
+      "# lisfm lio: LiDAR-IMU calibration estimated online. T_imu_lidar (imu_from_lidar) and\n"
+      "# time_offset (s, t_imu = t_lidar + time_offset) as in rig.yaml; *_initial: the rig.yaml\n"
+      "# values (the prior); *_std: 1-sigma of the filter covariance after the last update\n"
+      "# (rotation: about the LiDAR axes, rad, T = T_hat * Exp(d); translation: IMU frame, m).\n"
+      "lidars:\n";
+  for (const int k : used) {
+    const RigLidar& lidar = rig.lidars[k];
+    const LidarCalibrationEstimate& e = estimates[k];
+    std::vector<std::string> what;
+    if (e.extrinsic_estimated) what.push_back("extrinsic");
+    if (e.time_offset_estimated) what.push_back("time_offset");
+    out += fmt::format("  {}:\n    estimated: [{}]\n    T_imu_lidar:\n", lidar.name,
+                       fmt::join(what, ", "));
+    out += YamlMatrix("    ", e.imu_from_lidar.Matrix());
+    out += fmt::format("    time_offset: {}\n", e.time_offset_s);
+    out += fmt::format("    rotation_std: [{}, {}, {}]\n", e.rotation_std_rad.x(),
+                       e.rotation_std_rad.y(), e.rotation_std_rad.z());
+    out += fmt::format("    translation_std: [{}, {}, {}]\n", e.translation_std_m.x(),
+                       e.translation_std_m.y(), e.translation_std_m.z());
+    out += fmt::format("    time_offset_std: {}\n    T_imu_lidar_initial:\n", e.time_offset_std_s);
+    out += YamlMatrix("    ", lidar.imu_from_lidar.Matrix());
+    out += fmt::format("    time_offset_initial: {}\n", lidar.time_offset_s);
+  }
+  return out;
+}
+
+// One summary sentence per used LiDAR: the change from rig.yaml and its 1-sigma.
+std::string CalibrationSummary(const Rig& rig,
+                               const std::vector<int>& used,
+                               const std::vector<LidarCalibrationEstimate>& estimates) {
+  std::vector<std::string> parts;
+  for (const int k : used) {
+    const RigLidar& lidar = rig.lidars[k];
+    const LidarCalibrationEstimate& e = estimates[k];
+    std::string part = lidar.name + ":";
+    if (e.extrinsic_estimated) {
+      const SE3 change = lidar.imu_from_lidar.Inverse() * e.imu_from_lidar;
+      part += fmt::format(
+          " T_imu_lidar {:.2f} mm / {:.3f} deg from rig.yaml (1-sigma {:.2f} mm / {:.3f} deg)",
+          1e3 * (e.imu_from_lidar.translation() - lidar.imu_from_lidar.translation()).norm(),
+          so3::AngularDistance(change.rotation(), Quat::Identity()) * 180 / M_PI,
+          1e3 * e.translation_std_m.norm(), e.rotation_std_rad.norm() * 180 / M_PI);
+    }
+    if (e.time_offset_estimated) {
+      part += fmt::format("{} time offset {:.3f} ms (rig.yaml {:.3f} ms, 1-sigma {:.3f} ms)",
+                          e.extrinsic_estimated ? ";" : "", 1e3 * e.time_offset_s,
+                          1e3 * lidar.time_offset_s, 1e3 * e.time_offset_std_s);
+    }
+    parts.push_back(part);
+  }
+  return fmt::format("{}", fmt::join(parts, "; "));
+}
+
 double Percentile(std::vector<double> v, double q) {
   if (v.empty()) return 0;
   std::sort(v.begin(), v.end());
@@ -83,6 +155,11 @@ int RunLio(int argc, char** argv) {
   AddLioOptions(&options, &lio);
   if (!options.Parse(argc, argv)) return 0;
 
+  const bool calibrate = lio.estimate_extrinsic || lio.estimate_time_offset;
+  if (calibrate && method != "iekf") {
+    throw UsageError(
+        "lisfm lio: --Lio.estimate_extrinsic / --Lio.estimate_time_offset need --method iekf");
+  }
   OutputFolder output(output_path, overwrite);  // checked before the work
 
   const auto t0 = std::chrono::steady_clock::now();
@@ -174,6 +251,11 @@ int RunLio(int argc, char** argv) {
       VoxelDownsample((lidar_only ? lidar_only->map() : odom.map()).ToCloud(), map_voxel);
   WritePcd(output.File("map.pcd"), map_cloud);
   options.WriteConfig(output.File("lio_config.yaml"));
+  const std::vector<LidarCalibrationEstimate> calibration = odom.LidarCalibration();
+  if (calibrate) {
+    WriteFileAtomically(output.File("calibration.yaml"),
+                        CalibrationYaml(seq.rig, used, calibration));
+  }
   output.Commit();
 
   const double wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
@@ -187,6 +269,10 @@ int RunLio(int argc, char** argv) {
       processed, skipped, degenerate, Percentile(times_ms, 0.5), Percentile(times_ms, 0.95),
       proc_s > 0 ? data_s / proc_s : 0.0, wall_s > 0 ? data_s / wall_s : 0.0, keyframe_poses.size(),
       map_cloud.size(), trajectory.PathLength(), data_s, output_path);
+  if (calibrate) {
+    LogInfo("lio calibration (calibration.yaml): {}",
+            CalibrationSummary(seq.rig, used, calibration));
+  }
   return 0;
 }
 

@@ -357,6 +357,30 @@ void AddLioOptions(OptionManager* options, LioOptions* lio) {
                      &lio->keyframe_angle_deg,
                      "deg between keyframes",
                      R::GreaterThan(0));
+  options->AddBool("Lio.estimate_extrinsic",
+                   &lio->estimate_extrinsic,
+                   "estimate every LiDAR's T_imu_lidar online (FAST-LIO2 "
+                   "extrinsic_est_en); the rig.yaml value is the prior; "
+                   "estimates in calibration.yaml");
+  options->AddBool("Lio.estimate_time_offset",
+                   &lio->estimate_time_offset,
+                   "estimate every LiDAR's time offset to the IMU online; the "
+                   "rig.yaml value is the prior; estimates in calibration.yaml");
+  options->AddDouble("Lio.extrinsic_rotation_std_deg",
+                     &lio->extrinsic_rotation_std_deg,
+                     "deg, prior 1-sigma of the rig.yaml LiDAR rotation "
+                     "(with Lio.estimate_extrinsic)",
+                     R::GreaterThan(0));
+  options->AddDouble("Lio.extrinsic_translation_std",
+                     &lio->extrinsic_translation_std,
+                     "m, prior 1-sigma of the rig.yaml LiDAR translation "
+                     "(with Lio.estimate_extrinsic)",
+                     R::GreaterThan(0));
+  options->AddDouble("Lio.time_offset_std_ms",
+                     &lio->time_offset_std_ms,
+                     "ms, prior 1-sigma of the rig.yaml LiDAR time offset "
+                     "(with Lio.estimate_time_offset)",
+                     R::GreaterThan(0));
   AddVoxelMapOptions(options, &lio->map);
   AddImuInitializerOptions(options, &lio->init);
   options->AddStructCheck([lio] { return lio->Check(); });

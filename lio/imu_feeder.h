@@ -18,8 +18,11 @@ class ImuFeeder {
   explicit ImuFeeder(const std::vector<ImuSample>& samples) : samples_(samples) {}
 
   // Hands `odometry` every not yet fed sample up to and including the first
-  // one after `t_ns`, so the IMU covers t_ns whenever the recording does.
+  // one after `t_ns` plus the odometry's TimeOffsetLookaheadNs() (0 unless it
+  // estimates the LiDAR time offsets), so the IMU covers a frame ending at t_ns
+  // (with the rig's offsets) whenever the recording does.
   void FeedUntil(TimestampNs t_ns, LioOdometry* odometry) {
+    t_ns += odometry->TimeOffsetLookaheadNs();
     while (next_ < samples_.size() &&
            (odometry->LatestImuTime() < t_ns || samples_[next_].t_ns <= t_ns)) {
       odometry->AddImu(samples_[next_++]);

@@ -15,6 +15,7 @@
 #include "core/errors.h"
 #include "core/logging.h"
 #include "core/option_check.h"
+#include "lio/point_to_plane.h"
 
 namespace lisfm {
 
@@ -49,6 +50,27 @@ bool FitPlane(const std::vector<Eigen::Vector3f>& pts, double max_residual, Vec4
   *plane << unit, d;
   return true;
 }
+
+// Normal equations of one iteration with the calibration in the state: per
+// LiDAR, HᵀH and Hᵀz over the 13 columns of lio/point_to_plane.h.
+struct NormalCalibrated {
+  using Mat13 = Eigen::Matrix<double, 13, 13>;
+  using Vec13 = Eigen::Matrix<double, 13, 1>;
+  std::vector<Mat13> HtH;
+  std::vector<Vec13> Htz;
+  int count = 0;
+  double sum_sq = 0;
+  explicit NormalCalibrated(size_t num_lidars = 0)
+      : HtH(num_lidars, Mat13::Zero()), Htz(num_lidars, Vec13::Zero()) {}
+  void Join(const NormalCalibrated& o) {
+    for (size_t k = 0; k < HtH.size(); ++k) {
+      HtH[k] += o.HtH[k];
+      Htz[k] += o.Htz[k];
+    }
+    count += o.count;
+    sum_sq += o.sum_sq;
+  }
+};
 
 struct Normal6 {
   Mat6 HtH = Mat6::Zero();
@@ -86,6 +108,9 @@ bool LioOptions::Check() const {
   CHECK_OPTION_GT(keyframe_distance, 0.0);
   CHECK_OPTION_GT(keyframe_angle_deg, 0.0);
   CHECK_OPTION_NESTED(init);
+  CHECK_OPTION_GT(extrinsic_rotation_std_deg, 0.0);
+  CHECK_OPTION_GT(extrinsic_translation_std, 0.0);
+  CHECK_OPTION_GT(time_offset_std_ms, 0.0);
   return true;
 }
 
@@ -104,11 +129,63 @@ LioOdometry::LioOdometry(const LioOptions& options,
   THROW_CHECK_EQ(imu_from_lidar_.size(), lidar_time_offsets_s_.size());
   if (imu_from_lidar_.empty()) throw InputError("lio: no LiDAR extrinsics given");
   P_.setZero();
+  const int num_lidars = static_cast<int>(imu_from_lidar_.size());
+  calibration_block_ =
+      (options_.estimate_extrinsic ? 6 : 0) + (options_.estimate_time_offset ? 1 : 0);
+  time_offset_change_s_.assign(num_lidars, 0.0);
+  const int num_calib = num_lidars * calibration_block_;
+  P_core_calib_ = Eigen::MatrixXd::Zero(18, num_calib);
+  P_calib_ = Eigen::MatrixXd::Zero(num_calib, num_calib);
+  const double rot_var = std::pow(options_.extrinsic_rotation_std_deg * M_PI / 180.0, 2);
+  const double trans_var = std::pow(options_.extrinsic_translation_std, 2);
+  const double time_var = std::pow(options_.time_offset_std_ms * 1e-3, 2);
+  for (int k = 0; k < num_lidars; ++k) {
+    const int base = k * calibration_block_;
+    if (options_.estimate_extrinsic) {
+      P_calib_.diagonal().segment<3>(base).setConstant(rot_var);
+      P_calib_.diagonal().segment<3>(base + 3).setConstant(trans_var);
+    }
+    if (options_.estimate_time_offset) {
+      const int i = base + calibration_block_ - 1;
+      P_calib_(i, i) = time_var;
+    }
+  }
 }
 
 LioOdometry::~LioOdometry() = default;
 
 TimestampNs LioOdometry::LatestImuTime() const { return last_imu_time_; }
+
+std::vector<LidarCalibrationEstimate> LioOdometry::LidarCalibration() const {
+  std::vector<LidarCalibrationEstimate> out(imu_from_lidar_.size());
+  for (size_t k = 0; k < out.size(); ++k) {
+    LidarCalibrationEstimate& c = out[k];
+    c.imu_from_lidar = imu_from_lidar_[k];
+    c.time_offset_s = lidar_time_offsets_s_[k] + time_offset_change_s_[k];
+    c.extrinsic_estimated = options_.estimate_extrinsic;
+    c.time_offset_estimated = options_.estimate_time_offset;
+    const int base = static_cast<int>(k) * calibration_block_;
+    if (options_.estimate_extrinsic) {
+      c.rotation_std_rad = P_calib_.diagonal().segment<3>(base).cwiseSqrt();
+      c.translation_std_m = P_calib_.diagonal().segment<3>(base + 3).cwiseSqrt();
+    }
+    if (options_.estimate_time_offset) {
+      const int i = base + calibration_block_ - 1;
+      c.time_offset_std_s = std::sqrt(P_calib_(i, i));
+    }
+  }
+  return out;
+}
+
+TimestampNs LioOdometry::TimeOffsetLookaheadNs() const {
+  TimestampNs lookahead = 0;
+  for (size_t k = 0; k < time_offset_change_s_.size(); ++k) {
+    const TimestampNs shift = SecondsToNs(lidar_time_offsets_s_[k] + time_offset_change_s_[k]) -
+                              SecondsToNs(lidar_time_offsets_s_[k]);
+    lookahead = std::max(lookahead, shift);
+  }
+  return lookahead;
+}
 
 void LioOdometry::AddImu(const ImuSample& sample) {
   if (sample.t_ns <= last_imu_time_) {
@@ -200,6 +277,9 @@ void LioOdometry::PropagateStep(const Vec3& gyro, const Vec3& accel, double dt) 
   const double sbg = imu_noise_.gyroscope_random_walk * k;
   const double sba = imu_noise_.accelerometer_random_walk * k;
   P_ = F * P_ * F.transpose();
+  // The calibration is constant: only its cross-covariance moves. (A
+  // coefficient-wise product: 18 x K·block is too small for a blocked GEMM.)
+  if (calibration_block_ > 0) P_core_calib_ = F.lazyProduct(P_core_calib_);
   P_.block<3, 3>(kTheta, kTheta).diagonal().array() += sg * sg * dt;
   P_.block<3, 3>(kVel, kVel).diagonal().array() += sa * sa * dt;
   P_.block<3, 3>(kBg, kBg).diagonal().array() += sbg * sbg * dt;
@@ -262,6 +342,11 @@ LioFrameResult LioOdometry::ProcessFrame(const std::vector<LidarScanInput>& scan
   const auto wall_start = std::chrono::steady_clock::now();
   LioFrameResult result;
   // Absolute IMU-clock time of every point; the frame ends at the latest one.
+  // Each LiDAR's time offset: the given one plus the current estimate's change.
+  std::vector<TimestampNs> offsets_ns(imu_from_lidar_.size());
+  for (size_t k = 0; k < offsets_ns.size(); ++k) {
+    offsets_ns[k] = SecondsToNs(lidar_time_offsets_s_[k] + time_offset_change_s_[k]);
+  }
   TimestampNs t_begin = INT64_MAX, t_end = INT64_MIN;
   for (const auto& s : scans) {
     THROW_CHECK(s.cloud != nullptr);
@@ -270,7 +355,7 @@ LioFrameResult LioOdometry::ProcessFrame(const std::vector<LidarScanInput>& scan
                                    imu_from_lidar_.size()));
     }
     result.num_raw_points += static_cast<int>(s.cloud->size());
-    const TimestampNs offset = SecondsToNs(lidar_time_offsets_s_[s.sensor_id]);
+    const TimestampNs offset = offsets_ns[s.sensor_id];
     for (const auto& p : s.cloud->points) {
       const TimestampNs t = s.cloud->stamp_ns + offset + SecondsToNs(p.t);
       t_begin = std::min(t_begin, t);
@@ -344,7 +429,7 @@ LioFrameResult LioOdometry::ProcessFrame(const std::vector<LidarScanInput>& scan
   // De-skews `in` (sensor frame) into `out` (appended), dropping out-of-range points.
   auto deskew = [&](const LidarScanInput& s, const std::vector<LidarPoint>& in, PointCloud* out) {
     const SE3& T_il = imu_from_lidar_[s.sensor_id];
-    const TimestampNs offset = SecondsToNs(lidar_time_offsets_s_[s.sensor_id]);
+    const TimestampNs offset = offsets_ns[s.sensor_id];
     const size_t base = out->points.size();
     out->points.resize(base + in.size());
     tbb::parallel_for(tbb::blocked_range<size_t>(0, in.size(), 2048),
@@ -458,12 +543,58 @@ LioFrameResult LioOdometry::ProcessFrame(const std::vector<LidarScanInput>& scan
   // 3. Iterated update (information form).
   const Quat R_pred = R_;
   const Vec3 p_pred = p_, v_pred = v_, bg_pred = bg_, ba_pred = ba_, g_pred = g_;
-  const Mat18 P_inv = P_.ldlt().solve(Mat18::Identity());
   const double inv_var = 1.0 / (options_.point_noise_std * options_.point_noise_std);
   std::vector<Vec4> planes(body.size());
   std::vector<char> plane_ok(body.size(), 0);
 
+  // With the calibration in the state (lio/point_to_plane.h): the prior is the
+  // calibration the frame was de-skewed with; the iterate of LiDAR k is
+  // (q_e[k], t_e[k]) and the time-offset change dt_d[k] since the prior.
+  const bool calibrate = calibration_block_ > 0;
+  const size_t num_lidars = imu_from_lidar_.size();
+  const int num_states = 18 + static_cast<int>(num_lidars) * calibration_block_;
+  std::vector<Quat> q_e(num_lidars);
+  std::vector<Vec3> t_e(num_lidars);
+  std::vector<double> dt_d(num_lidars, 0.0);
+  std::vector<Vec3> x_lidar;  // body points in their LiDAR's frame at t_end
+  BodyRates rates;
+  Eigen::MatrixXd P_inv_full;
+  Mat18 P_inv;
+  if (calibrate) {
+    rates.angular_velocity = history.back().omega;
+    rates.velocity = v_pred;
+    std::vector<SE3> lidar_from_imu(num_lidars);
+    for (size_t k = 0; k < num_lidars; ++k) {
+      q_e[k] = imu_from_lidar_[k].rotation();
+      t_e[k] = imu_from_lidar_[k].translation();
+      lidar_from_imu[k] = imu_from_lidar_[k].Inverse();
+    }
+    x_lidar.resize(body.size());
+    for (size_t i = 0; i < body.size(); ++i) {
+      x_lidar[i] = lidar_from_imu[attributes[i].sensor_id] * body[i].cast<double>();
+    }
+    Eigen::MatrixXd P_full(num_states, num_states);
+    P_full << P_, P_core_calib_, P_core_calib_.transpose(), P_calib_;
+    P_inv_full = P_full.ldlt().solve(Eigen::MatrixXd::Identity(num_states, num_states));
+  } else {
+    P_inv = P_.ldlt().solve(Mat18::Identity());
+  }
+  // The measurement state of each LiDAR at pose (R, t) and the current iterate.
+  auto calibrated_poses = [&](const Mat3& R, const Vec3& t) {
+    std::vector<CalibratedPose> poses(num_lidars);
+    for (size_t k = 0; k < num_lidars; ++k) {
+      poses[k].world_R_imu = R;
+      poses[k].world_p_imu = t;
+      poses[k].imu_R_lidar = q_e[k].toRotationMatrix();
+      poses[k].imu_p_lidar = t_e[k];
+      poses[k].time_offset_change_s = dt_d[k];
+    }
+    return poses;
+  };
+
   auto associate = [&](const Mat3& R, const Vec3& t) {
+    const std::vector<CalibratedPose> poses = calibrate ? calibrated_poses(R, t)
+                                                        : std::vector<CalibratedPose>();
     tbb::parallel_for(tbb::blocked_range<size_t>(0, body.size(), 256),
                       [&](const tbb::blocked_range<size_t>& r) {
       std::vector<Eigen::Vector3f> nbrs;
@@ -471,7 +602,9 @@ LioFrameResult LioOdometry::ProcessFrame(const std::vector<LidarScanInput>& scan
       nbrs.reserve(options_.num_neighbours);
       d2.reserve(options_.num_neighbours);
       for (size_t i = r.begin(); i < r.end(); ++i) {
-        const Vec3 pw = R * body[i].cast<double>() + t;
+        const Vec3 pw = calibrate ? CalibratedPointInWorld(poses[attributes[i].sensor_id], rates,
+                                                           x_lidar[i])
+                                  : Vec3(R * body[i].cast<double>() + t);
         plane_ok[i] = 0;
         const int n = map_->KnnSearch(pw.cast<float>(), options_.num_neighbours,
                                       options_.max_neighbour_distance, &nbrs, &d2);
@@ -479,6 +612,15 @@ LioFrameResult LioOdometry::ProcessFrame(const std::vector<LidarScanInput>& scan
         if (FitPlane(nbrs, options_.max_plane_residual, &planes[i])) plane_ok[i] = 1;
       }
     });
+  };
+
+  // FAST-LIO2's gate (closer points must fit tighter) and an absolute one:
+  // across a 0.17 m stair riser, or at a step edge where the 5 neighbours span
+  // a tread and a riser, the range-relative gate alone admits biased matches
+  // that pull the pose down the stairs. `range`: the point's distance from the IMU.
+  auto keep_match = [&](double res, double range) {
+    if (1.0 - 0.9 * std::abs(res) / std::sqrt(range) <= 0.9) return false;
+    return !(std::abs(res) > options_.max_point_residual);
   };
 
   // Deterministic: fixed 512-point chunks summed in a fixed tree, so the
@@ -493,12 +635,7 @@ LioFrameResult LioOdometry::ProcessFrame(const std::vector<LidarScanInput>& scan
             const Vec3 pw = R * pb + t;
             const Vec3 n = planes[i].head<3>();
             const double res = n.dot(pw) + planes[i](3);
-            // FAST-LIO2's gate (closer points must fit tighter) and an absolute
-            // one: across a 0.17 m stair riser, or at a step edge where the 5
-            // neighbours span a tread and a riser, the range-relative gate
-            // alone admits biased matches that pull the pose down the stairs.
-            if (1.0 - 0.9 * std::abs(res) / std::sqrt(pb.norm()) <= 0.9) continue;
-            if (std::abs(res) > options_.max_point_residual) continue;
+            if (!keep_match(res, pb.norm())) continue;
             Vec6 h;
             h.head<3>() = -(R * Hat(pb)).transpose() * n;  // d res / d θ (right perturbation)
             h.tail<3>() = n;                               // d res / d p
@@ -514,17 +651,76 @@ LioFrameResult LioOdometry::ProcessFrame(const std::vector<LidarScanInput>& scan
           return a;
         });
   };
+  auto accumulate_calibrated = [&](const Mat3& R, const Vec3& t) {
+    const std::vector<CalibratedPose> poses = calibrated_poses(R, t);
+    return tbb::parallel_deterministic_reduce(
+        tbb::blocked_range<size_t>(0, body.size(), 512), NormalCalibrated(num_lidars),
+        [&](const tbb::blocked_range<size_t>& r, NormalCalibrated acc) {
+          CalibratedPointJacobian h;
+          Vec3 q;
+          for (size_t i = r.begin(); i < r.end(); ++i) {
+            if (!plane_ok[i]) continue;
+            const int k = attributes[i].sensor_id;
+            const double res =
+                CalibratedPointToPlaneResidual(poses[k], rates, x_lidar[i], planes[i], &h, &q);
+            if (!keep_match(res, q.norm())) continue;
+            acc.HtH[k].noalias() += h * h.transpose();
+            acc.Htz[k].noalias() += h * res;
+            acc.count += 1;
+            acc.sum_sq += res * res;
+          }
+          return acc;
+        },
+        [](NormalCalibrated a, const NormalCalibrated& b) {
+          a.Join(b);
+          return a;
+        });
+  };
+  // Adds each LiDAR's HᵀR⁻¹H to the information matrix `A` over the full
+  // error state and, optionally, −HᵀR⁻¹z to `b`.
+  auto add_calibrated_information = [&](const NormalCalibrated& nc, Eigen::MatrixXd* A,
+                                        Eigen::VectorXd* b) {
+    for (size_t k = 0; k < num_lidars; ++k) {
+      const int base = 18 + static_cast<int>(k) * calibration_block_;
+      // Column j of the 13 of lio/point_to_plane.h -> index in the error state (-1: not estimated).
+      int index[13];
+      for (int j = 0; j < 13; ++j) {
+        if (j < 6) {
+          index[j] = j;  // kTheta = 0, kPos = 3: the same order
+        } else if (j < 12) {
+          index[j] = options_.estimate_extrinsic ? base + j - 6 : -1;
+        } else {
+          index[j] = options_.estimate_time_offset ? base + calibration_block_ - 1 : -1;
+        }
+      }
+      const NormalCalibrated::Mat13& HtH = nc.HtH[k];
+      for (int i = 0; i < 13; ++i) {
+        if (index[i] < 0) continue;
+        for (int j = 0; j < 13; ++j) {
+          if (index[j] >= 0) (*A)(index[i], index[j]) += HtH(i, j) * inv_var;
+        }
+        if (b != nullptr) (*b)(index[i]) -= nc.Htz[k](i) * inv_var;
+      }
+    }
+  };
+  // The pose block of the calibrated normal equations (count, degeneracy).
+  auto pose_block = [&](const NormalCalibrated& nc) {
+    Normal6 n;
+    for (size_t k = 0; k < num_lidars; ++k) {
+      n.HtH += nc.HtH[k].topLeftCorner<6, 6>();
+      n.Htz += nc.Htz[k].head<6>();
+    }
+    n.count = nc.count;
+    n.sum_sq = nc.sum_sq;
+    return n;
+  };
 
+  // One Gauss-Newton step at the current iterate: fills `normal` and returns
+  // false when fewer than 6 points match; `delta_calib` gets the calibration
+  // states' step.
   Normal6 normal;
-  bool converged = false;
-  bool searched_after_convergence = false;
-  associate(R_.toRotationMatrix(), p_);
-  Quat R_assoc = R_;
-  Vec3 p_assoc = p_;
-  int it = 0;
-  for (; it < options_.max_iterations; ++it) {
-    normal = accumulate(R_.toRotationMatrix(), p_);
-    if (normal.count < 6) break;
+  NormalCalibrated normal_calib;
+  auto solve_step = [&](Vec18* delta, Eigen::VectorXd* delta_calib) {
     Vec18 d;
     d.segment<3>(kTheta) = so3::Log(R_pred.conjugate() * R_);
     d.segment<3>(kPos) = p_ - p_pred;
@@ -532,18 +728,63 @@ LioFrameResult LioOdometry::ProcessFrame(const std::vector<LidarScanInput>& scan
     d.segment<3>(kBg) = bg_ - bg_pred;
     d.segment<3>(kBa) = ba_ - ba_pred;
     d.segment<3>(kGrav) = g_ - g_pred;
-    Mat18 A = P_inv;
-    A.topLeftCorner<6, 6>() += normal.HtH * inv_var;
-    Vec18 b = -P_inv * d;
-    b.head<6>() -= normal.Htz * inv_var;
-    const Vec18 delta = A.ldlt().solve(b);
-    if (!delta.allFinite()) break;
+    if (!calibrate) {
+      normal = accumulate(R_.toRotationMatrix(), p_);
+      if (normal.count < 6) return false;
+      Mat18 A = P_inv;
+      A.topLeftCorner<6, 6>() += normal.HtH * inv_var;
+      Vec18 b = -P_inv * d;
+      b.head<6>() -= normal.Htz * inv_var;
+      *delta = A.ldlt().solve(b);
+      return true;
+    }
+    normal_calib = accumulate_calibrated(R_.toRotationMatrix(), p_);
+    normal = pose_block(normal_calib);
+    if (normal.count < 6) return false;
+    Eigen::VectorXd d_full(num_states);
+    d_full.head<18>() = d;
+    for (size_t k = 0; k < num_lidars; ++k) {
+      const int base = 18 + static_cast<int>(k) * calibration_block_;
+      if (options_.estimate_extrinsic) {
+        d_full.segment<3>(base) = so3::Log(imu_from_lidar_[k].rotation().conjugate() * q_e[k]);
+        d_full.segment<3>(base + 3) = t_e[k] - imu_from_lidar_[k].translation();
+      }
+      if (options_.estimate_time_offset) d_full(base + calibration_block_ - 1) = dt_d[k];
+    }
+    Eigen::MatrixXd A = P_inv_full;
+    Eigen::VectorXd b = -P_inv_full * d_full;
+    add_calibrated_information(normal_calib, &A, &b);
+    const Eigen::VectorXd step = A.ldlt().solve(b);
+    *delta = step.head<18>();
+    *delta_calib = step.tail(num_states - 18);
+    return true;
+  };
+
+  bool converged = false;
+  bool searched_after_convergence = false;
+  associate(R_.toRotationMatrix(), p_);
+  Quat R_assoc = R_;
+  Vec3 p_assoc = p_;
+  int it = 0;
+  for (; it < options_.max_iterations; ++it) {
+    Vec18 delta;
+    Eigen::VectorXd delta_calib;
+    if (!solve_step(&delta, &delta_calib)) break;
+    if (!delta.allFinite() || !delta_calib.allFinite()) break;
     R_ = (R_ * so3::Exp(delta.segment<3>(kTheta))).normalized();
     p_ += delta.segment<3>(kPos);
     v_ += delta.segment<3>(kVel);
     bg_ += delta.segment<3>(kBg);
     ba_ += delta.segment<3>(kBa);
     g_ += delta.segment<3>(kGrav);
+    for (size_t k = 0; calibrate && k < num_lidars; ++k) {
+      const int base = static_cast<int>(k) * calibration_block_;
+      if (options_.estimate_extrinsic) {
+        q_e[k] = (q_e[k] * so3::Exp(delta_calib.segment<3>(base))).normalized();
+        t_e[k] += delta_calib.segment<3>(base + 3);
+      }
+      if (options_.estimate_time_offset) dt_d[k] += delta_calib(base + calibration_block_ - 1);
+    }
     const bool small = delta.segment<3>(kTheta).norm() < options_.convergence_rotation &&
                        delta.segment<3>(kPos).norm() < options_.convergence_translation;
     if (small) {
@@ -569,7 +810,8 @@ LioFrameResult LioOdometry::ProcessFrame(const std::vector<LidarScanInput>& scan
   }
   result.iterations = it;
   if (normal.count < 6) {
-    // No usable planes: keep the IMU prediction (degenerate / feature-less).
+    // No usable planes: keep the IMU prediction (degenerate / feature-less)
+    // and the calibration.
     R_ = R_pred;
     p_ = p_pred;
     v_ = v_pred;
@@ -585,11 +827,23 @@ LioFrameResult LioOdometry::ProcessFrame(const std::vector<LidarScanInput>& scan
     return result;
   }
   // Posterior covariance at the final linearisation.
-  normal = accumulate(R_.toRotationMatrix(), p_);
-  Mat18 A = P_inv;
-  A.topLeftCorner<6, 6>() += normal.HtH * inv_var;
-  P_ = A.ldlt().solve(Mat18::Identity());
-  P_ = 0.5 * (P_ + P_.transpose()).eval();
+  if (!calibrate) {
+    normal = accumulate(R_.toRotationMatrix(), p_);
+    Mat18 A = P_inv;
+    A.topLeftCorner<6, 6>() += normal.HtH * inv_var;
+    P_ = A.ldlt().solve(Mat18::Identity());
+    P_ = 0.5 * (P_ + P_.transpose()).eval();
+  } else {
+    normal_calib = accumulate_calibrated(R_.toRotationMatrix(), p_);
+    normal = pose_block(normal_calib);
+    Eigen::MatrixXd A = P_inv_full;
+    add_calibrated_information(normal_calib, &A, nullptr);
+    Eigen::MatrixXd P_full = A.ldlt().solve(Eigen::MatrixXd::Identity(num_states, num_states));
+    P_full = 0.5 * (P_full + P_full.transpose()).eval();
+    P_ = P_full.topLeftCorner<18, 18>();
+    P_core_calib_ = P_full.topRightCorner(18, num_states - 18);
+    P_calib_ = P_full.bottomRightCorner(num_states - 18, num_states - 18);
+  }
   result.num_matched = normal.count;
 
   // Degeneracy: eigenvalues of the information the points gave.
@@ -605,7 +859,24 @@ LioFrameResult LioOdometry::ProcessFrame(const std::vector<LidarScanInput>& scan
   if (!pose.translation().allFinite() || !pose.rotation().coeffs().allFinite()) {
     throw InternalError("lio: non-finite pose after the update");
   }
-  insert_into_map(pose);
+  if (calibrate) {
+    // The map gets the points at the updated calibration; later frames (and
+    // this frame's keyframe cloud) are de-skewed with it.
+    const std::vector<CalibratedPose> poses =
+        calibrated_poses(pose.RotationMatrix(), pose.translation());
+    std::vector<Eigen::Vector3f> world(body.size());
+    for (size_t i = 0; i < body.size(); ++i) {
+      world[i] = CalibratedPointInWorld(poses[attributes[i].sensor_id], rates, x_lidar[i])
+                     .cast<float>();
+    }
+    map_->Insert(world, &attributes);
+    for (size_t k = 0; k < num_lidars; ++k) {
+      if (options_.estimate_extrinsic) imu_from_lidar_[k] = SE3(q_e[k], t_e[k]);
+      time_offset_change_s_[k] += dt_d[k];
+    }
+  } else {
+    insert_into_map(pose);
+  }
   finish(pose);
   return result;
 }

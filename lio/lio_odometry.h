@@ -15,6 +15,23 @@
 // over the points to accumulate the 6x6 HᵀH, then an 18x18 solve: it grows with
 // the state size, not the number of points.
 //
+// Online calibration (options estimate_extrinsic / estimate_time_offset): the
+// error state grows by a block per LiDAR k, [dθ_e, dt_e] (imu_from_lidar, rotation
+// on the right, translation in the IMU frame; FAST-LIO2's `extrinsic_est_en`)
+// and/or dt_d (s, added to the rig's time offset: t_imu = t_lidar + offset + t_d).
+// The calibration is constant (no process noise); its prior is the rig's value
+// with the *_std options as 1-sigma. The measurement model and its Jacobian
+// are in lio/point_to_plane.h; per point H gains the 7 columns of its LiDAR,
+// accumulated as one 13x13 HᵀH per LiDAR. Points are de-skewed with the
+// estimate of the previous frame; the map and keyframes get the updated one.
+// Observability: the time offset shows in the motion distortion and the
+// extrinsic rotation in the gyro rates; the extrinsic translation only through
+// the lever-arm accelerations the IMU feels when the rig turns (a LiDAR-only
+// fit moves the position instead), so it converges slowly at the inflated IMU
+// noise, and the map built before convergence keeps the initial error
+// (docs/BENCHMARKS.md). Off (the default), the filter is the 18-state one
+// above, bit for bit.
+//
 // Threading: AddImu/ProcessFrame are called from one thread; ProcessFrame uses
 // TBB internally for de-skew and residuals. Results are bit-identical run to
 // run and for any thread count: the per-point sums of the update are reduced
@@ -74,7 +91,27 @@ struct LioOptions {
   double keyframe_distance = 1.0;   // m between keyframes
   double keyframe_angle_deg = 15.0; // or this much rotation
   ImuInitializerOptions init;
+  // Online LiDAR–IMU calibration (see the header comment). Prior 1-sigma of
+  // the rig's values: FAST-LIO2 starts its extrinsic at 0.18 deg / 3.2 mm.
+  bool estimate_extrinsic = false;          // imu_from_lidar of every LiDAR
+  bool estimate_time_offset = false;        // time offset of every LiDAR
+  double extrinsic_rotation_std_deg = 0.5;  // deg
+  double extrinsic_translation_std = 0.01;  // m
+  double time_offset_std_ms = 5.0;          // ms
   bool Check() const;
+};
+
+// The LiDAR–IMU calibration the filter holds for one LiDAR.
+struct LidarCalibrationEstimate {
+  SE3 imu_from_lidar;             // current estimate (the given value when not estimated)
+  double time_offset_s = 0;       // t_imu = t_lidar + time_offset_s
+  bool extrinsic_estimated = false;
+  bool time_offset_estimated = false;
+  // 1-sigma of the filter covariance; 0 when not estimated. Rotation about
+  // the LiDAR axes (right perturbation, rad), translation in the IMU frame (m).
+  Vec3 rotation_std_rad = Vec3::Zero();
+  Vec3 translation_std_m = Vec3::Zero();
+  double time_offset_std_s = 0;
 };
 
 // Which directions one update constrained weakly.
@@ -138,6 +175,12 @@ class LioOdometry {
   const Eigen::Matrix<double, 18, 18>& covariance() const { return P_; }
   const Vec3& gyro_bias() const { return bg_; }
   const Vec3& accel_bias() const { return ba_; }
+  // Per LiDAR given to the constructor (estimated or not).
+  std::vector<LidarCalibrationEstimate> LidarCalibration() const;
+  // ns by which the estimated time offsets move points later than the given
+  // ones (>= 0; 0 when not estimated): a frame needs IMU data up to its end
+  // computed with the given offsets plus this (lio/imu_feeder.h adds it).
+  TimestampNs TimeOffsetLookaheadNs() const;
 
  private:
   struct PoseSample {
@@ -153,8 +196,16 @@ class LioOdometry {
 
   LioOptions options_;
   ImuNoise imu_noise_;
-  std::vector<SE3> imu_from_lidar_;
-  std::vector<double> lidar_time_offsets_s_;
+  std::vector<SE3> imu_from_lidar_;           // current estimate
+  std::vector<double> lidar_time_offsets_s_;  // as given
+  // Online calibration: states per LiDAR in the error state after the 18 core
+  // ones (6 extrinsic, then 1 time offset; 0 = off), the time-offset estimate
+  // minus the given offset (s), and the covariance blocks: core x calibration
+  // (18 x K·block) and calibration x calibration.
+  int calibration_block_ = 0;
+  std::vector<double> time_offset_change_s_;
+  Eigen::MatrixXd P_core_calib_;
+  Eigen::MatrixXd P_calib_;
   std::deque<ImuSample> imu_buffer_;   // samples not yet consumed by propagation
   std::vector<ImuSample> init_samples_;
   ImuSample last_imu_;                 // last sample consumed (for mid-point integration)

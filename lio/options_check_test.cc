@@ -56,6 +56,9 @@ TEST(LioOptionsCheck, Odometry) {
       {"keyframe_distance", [](L* o) { o->keyframe_distance = 0.0; }},
       {"keyframe_angle_deg", [](L* o) { o->keyframe_angle_deg = 0.0; }},
       {"init.min_samples", [](L* o) { o->init.min_samples = 0; }},
+      {"extrinsic_rotation_std_deg", [](L* o) { o->extrinsic_rotation_std_deg = 0.0; }},
+      {"extrinsic_translation_std", [](L* o) { o->extrinsic_translation_std = -0.01; }},
+      {"time_offset_std_ms", [](L* o) { o->time_offset_std_ms = 0.0; }},
   });
 }
 

@@ -57,6 +57,7 @@ TEST_F(LioCommandTest, RunsAndWritesOutputs) {
     EXPECT_TRUE(FileExists(o + "/" + f)) << f;
   }
   EXPECT_NE(out.find("lio summary"), std::string::npos) << out;
+  EXPECT_FALSE(FileExists(o + "/calibration.yaml")) << "written only with the estimation on";
   EXPECT_FALSE(DirExists(o + "/keyframes.tmp"));
   EXPECT_TRUE(FileExists(o + "/" + kOutputMarkerName));
   // The map keeps the measured intensities (the simulator's are 0..255 from
@@ -178,6 +179,31 @@ TEST_F(LioCommandTest, MissingLidarExtrinsicIsAnError) {
   EXPECT_NE(out.find("T_imu_lidar"), std::string::npos) << out;
 }
 
+// With the online calibration on, calibration.yaml holds the estimate of the
+// used LiDAR with its 1-sigma and the rig.yaml value it started from, and the
+// summary names it.
+TEST_F(LioCommandTest, OnlineCalibrationWritesCalibrationYaml) {
+  std::string out;
+  const std::string o = dir_->File("calibrated");
+  ASSERT_EQ(test::RunCommand(test::LisfmBinary() + " lio --input_path " + dir_->File("seq") +
+                                 " --output_path " + o +
+                                 " --Lio.estimate_extrinsic 1 --Lio.estimate_time_offset 1",
+                             &out),
+            0)
+      << out;
+  EXPECT_NE(out.find("lio calibration (calibration.yaml): lidar0: T_imu_lidar"), std::string::npos)
+      << out;
+  const std::string yaml = ReadFile(o + "/calibration.yaml");
+  for (const char* key :
+       {"lidars:\n  lidar0:\n    estimated: [extrinsic, time_offset]\n    T_imu_lidar:\n    - [",
+        "\n    time_offset: ", "\n    rotation_std: [", "\n    translation_std: [",
+        "\n    time_offset_std: ", "\n    T_imu_lidar_initial:\n    - [",
+        "\n    time_offset_initial: 0\n"}) {
+    EXPECT_NE(yaml.find(key), std::string::npos) << key << " missing in\n" << yaml;
+  }
+  EXPECT_NE(ReadFile(o + "/lio_config.yaml").find("Lio.estimate_extrinsic: 1"), std::string::npos);
+}
+
 TEST_F(LioCommandTest, UsageErrors) {
   std::string out;
   EXPECT_EQ(test::RunCommand(test::LisfmBinary() + " lio --input_path " + dir_->File("seq") +
@@ -185,6 +211,14 @@ TEST_F(LioCommandTest, UsageErrors) {
                              &out),
             2);
   EXPECT_NE(out.find("--lidars"), std::string::npos) << out;
+  // The LiDAR-only baseline has no IMU state to hold a calibration.
+  EXPECT_EQ(test::RunCommand(test::LisfmBinary() + " lio --input_path " + dir_->File("seq") +
+                                 " --output_path " + dir_->File("o6") +
+                                 " --method lidar_only --Lio.estimate_time_offset 1",
+                             &out),
+            2);
+  EXPECT_NE(out.find("--Lio.estimate_time_offset need --method iekf"), std::string::npos) << out;
+  EXPECT_FALSE(DirExists(dir_->File("o6")));
   EXPECT_EQ(test::RunCommand(test::LisfmBinary() + " lio --input_path /nonexistent --output_path " +
                                  dir_->File("o5"),
                              &out),
