@@ -2,12 +2,12 @@
 // objective: chordal initialisation, then Levenberg-Marquardt (Ceres, sparse
 // Cholesky); prints the objective before and after, iterations and times, and
 // writes the optimised graph.
+#include <fmt/format.h>
+
 #include <chrono>
 #include <cmath>
 #include <iostream>
 #include <string>
-
-#include <fmt/format.h>
 
 #include "apps/commands.h"
 #include "apps/option_sections.h"
@@ -39,7 +39,8 @@ int RunPoseGraph(int argc, char** argv) {
   std::string input_path, output_path;
   G2oOptimizationOptions pose_graph;
   options.AddRequiredString("input_path", &input_path, "g2o pose graph to optimise");
-  options.AddString("output_path", &output_path,
+  options.AddString("output_path",
+                    &output_path,
                     "g2o file for the optimised graph (vertices = optimised poses, edges as read; "
                     "optional)");
   AddPoseGraphOptions(&options, &pose_graph);
@@ -52,8 +53,8 @@ int RunPoseGraph(int argc, char** argv) {
   const G2oGraph graph = ReadG2o(input_path);
   CheckG2oConnected(graph, input_path);
   if (pose_graph.initialization == "vertices" && graph.vertices.empty()) {
-    throw InputError(input_path, "",
-                     "--PoseGraph.initialization vertices needs VERTEX records, found none");
+    throw InputError(
+        input_path, "", "--PoseGraph.initialization vertices needs VERTEX records, found none");
   }
   const double read_s = SecondsSince(start);
 
@@ -64,8 +65,8 @@ int RunPoseGraph(int argc, char** argv) {
     result = OptimizeG2oGraph(graph, pose_graph, [&](int, double) { progress.Add(); });
   }
   if (!result.solve.usable) {
-    throw std::runtime_error(fmt::format("pose_graph: {}: the solver failed: {}", input_path,
-                                         result.solve.message));
+    throw std::runtime_error(
+        fmt::format("pose_graph: {}: the solver failed: {}", input_path, result.solve.message));
   }
   const G2oGraph optimized = WithOptimizedVertices(graph, result);
   double write_s = 0.0;
@@ -81,23 +82,39 @@ int RunPoseGraph(int argc, char** argv) {
       "dimension: {}\nposes: {}\nedges: {}\nF_vertices: {}\nF_initial: {}\nF_final: {}\n"
       "initialization: {}\niterations: {}\nconverged: {}\ntermination: {}\nlinear_solver: {}\n"
       "time_s: read {:.3f} initialization {:.3f} solve {:.3f} write {:.3f} total {:.3f}\n",
-      graph.dimension, result.ids.size(), graph.edges.size(),
-      FormatObjective(result.objective_vertices), FormatObjective(result.objective_initial),
-      FormatObjective(result.objective_final), pose_graph.initialization,
-      result.solve.iterations, result.solve.converged, result.solve.message,
-      result.solve.linear_solver, read_s, result.initialization_seconds, result.solve.seconds,
-      write_s, total_s);
+      graph.dimension,
+      result.ids.size(),
+      graph.edges.size(),
+      FormatObjective(result.objective_vertices),
+      FormatObjective(result.objective_initial),
+      FormatObjective(result.objective_final),
+      pose_graph.initialization,
+      result.solve.iterations,
+      result.solve.converged,
+      result.solve.message,
+      result.solve.linear_solver,
+      read_s,
+      result.initialization_seconds,
+      result.solve.seconds,
+      write_s,
+      total_s);
   if (!result.solve.converged) {
     std::cout << "WARNING: not converged: " << result.solve.message << "\n";
   }
   std::cout.flush();
-  LogInfo("pose_graph: {}D graph, {} poses, {} edges; F = {} at the {} start, {} after {} "
-          "Levenberg-Marquardt iterations ({}); {:.3f} s in total{}",
-          graph.dimension, result.ids.size(), graph.edges.size(),
-          FormatObjective(result.objective_initial), pose_graph.initialization,
-          FormatObjective(result.objective_final), result.solve.iterations,
-          result.solve.converged ? "converged" : "NOT converged", total_s,
-          output_path.empty() ? "" : "; wrote " + output_path);
+  LogInfo(
+      "pose_graph: {}D graph, {} poses, {} edges; F = {} at the {} start, {} after {} "
+      "Levenberg-Marquardt iterations ({}); {:.3f} s in total{}",
+      graph.dimension,
+      result.ids.size(),
+      graph.edges.size(),
+      FormatObjective(result.objective_initial),
+      pose_graph.initialization,
+      FormatObjective(result.objective_final),
+      result.solve.iterations,
+      result.solve.converged ? "converged" : "NOT converged",
+      total_s,
+      output_path.empty() ? "" : "; wrote " + output_path);
   return 0;
 }
 

@@ -1,13 +1,13 @@
 #include "core/io/g2o_io.h"
 
+#include <fmt/format.h>
+
+#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
 #include <numeric>
 #include <sstream>
 #include <unordered_map>
-
-#include <Eigen/Eigenvalues>
-#include <fmt/format.h>
 
 #include "core/errors.h"
 #include "core/file_utils.h"
@@ -50,8 +50,8 @@ class RecordParser {
   void ExpectCount(int count, const char* layout) const {
     const int found = static_cast<int>(fields_.size()) - 1;
     if (found != count) {
-      Fail(fmt::format("{}: expected {} fields after the tag ({}), found {}", fields_[0], count,
-                       layout, found));
+      Fail(fmt::format(
+          "{}: expected {} fields after the tag ({}), found {}", fields_[0], count, layout, found));
     }
   }
 
@@ -59,8 +59,8 @@ class RecordParser {
   double Number(size_t k) const {
     double value = 0.0;
     if (!ParseDouble(fields_[k], &value)) {
-      Fail(fmt::format("{}: field {}: expected a finite number, found '{}'", fields_[0], k,
-                       fields_[k]));
+      Fail(fmt::format(
+          "{}: field {}: expected a finite number, found '{}'", fields_[0], k, fields_[k]));
     }
     return value;
   }
@@ -69,7 +69,9 @@ class RecordParser {
     int64_t value = 0;
     if (!ParseInt64(fields_[k], &value) || value < 0) {
       Fail(fmt::format("{}: field {}: expected a non-negative integer vertex id, found '{}'",
-                       fields_[0], k, fields_[k]));
+                       fields_[0],
+                       k,
+                       fields_[k]));
     }
     return value;
   }
@@ -80,7 +82,9 @@ class RecordParser {
     const double norm = q.norm();
     if (std::abs(norm - 1.0) > kQuaternionNormTolerance) {
       Fail(fmt::format("{}: expected a unit quaternion (|q| - 1 within {}), found |q| = {:.9g}",
-                       fields_[0], kQuaternionNormTolerance, norm));
+                       fields_[0],
+                       kQuaternionNormTolerance,
+                       norm));
     }
     return q.normalized();
   }
@@ -106,9 +110,12 @@ class RecordParser {
     const Eigen::SelfAdjointEigenSolver<MatX> solver(block, Eigen::EigenvaluesOnly);
     const double min_eigenvalue = solver.eigenvalues().minCoeff();
     if (solver.info() != Eigen::Success || !(min_eigenvalue > 0.0)) {
-      Fail(fmt::format("{}: expected a positive-definite {} block of the information matrix, "
-                       "found minimum eigenvalue {:.6g}",
-                       fields_[0], what, min_eigenvalue));
+      Fail(
+          fmt::format("{}: expected a positive-definite {} block of the information matrix, "
+                      "found minimum eigenvalue {:.6g}",
+                      fields_[0],
+                      what,
+                      min_eigenvalue));
     }
   }
 
@@ -152,7 +159,8 @@ class RecordParser {
   void CheckDistinct(const G2oEdge& edge) const {
     if (edge.id_i == edge.id_j) {
       Fail(fmt::format("{}: expected an edge between two vertices, found vertex {} to itself",
-                       fields_[0], edge.id_i));
+                       fields_[0],
+                       edge.id_i));
     }
   }
 
@@ -201,22 +209,26 @@ G2oGraph ReadG2o(const std::string& path) {
     } else if (tag == kVertex3 || tag == kEdge3) {
       dimension = 3;
     } else {
-      parser.Fail(fmt::format("unknown tag '{}' (expected {}, {}, {} or {})", tag, kVertex2,
-                              kEdge2, kVertex3, kEdge3));
+      parser.Fail(fmt::format(
+          "unknown tag '{}' (expected {}, {}, {} or {})", tag, kVertex2, kEdge2, kVertex3, kEdge3));
     }
     if (graph.dimension == 0) {
       graph.dimension = dimension;
       dimension_line = reader.line_number();
     } else if (dimension != graph.dimension) {
-      parser.Fail(fmt::format("{}: a {}D record in a {}D graph (line {} is {}D)", tag, dimension,
-                              graph.dimension, dimension_line, graph.dimension));
+      parser.Fail(fmt::format("{}: a {}D record in a {}D graph (line {} is {}D)",
+                              tag,
+                              dimension,
+                              graph.dimension,
+                              dimension_line,
+                              graph.dimension));
     }
     if (tag == kVertex2 || tag == kVertex3) {
       G2oVertex vertex = dimension == 2 ? parser.Vertex2() : parser.Vertex3();
       const auto [it, inserted] = vertex_line.emplace(vertex.id, vertex.line);
       if (!inserted) {
-        parser.Fail(fmt::format("{}: vertex {} is defined twice (first on line {})", tag,
-                                vertex.id, it->second));
+        parser.Fail(fmt::format(
+            "{}: vertex {} is defined twice (first on line {})", tag, vertex.id, it->second));
       }
       graph.vertices.push_back(vertex);
     } else {
@@ -224,16 +236,20 @@ G2oGraph ReadG2o(const std::string& path) {
     }
   }
   if (graph.edges.empty()) {
-    throw InputError(path, "", "expected at least one edge (EDGE_SE2 or EDGE_SE3:QUAT), found none");
+    throw InputError(
+        path, "", "expected at least one edge (EDGE_SE2 or EDGE_SE3:QUAT), found none");
   }
   if (!graph.vertices.empty()) {
     for (const G2oEdge& edge : graph.edges) {
       for (const int64_t id : {edge.id_i, edge.id_j}) {
         if (vertex_line.count(id) == 0) {
-          throw InputError(path, "line " + std::to_string(edge.line),
+          throw InputError(path,
+                           "line " + std::to_string(edge.line),
                            fmt::format("edge {} -> {} names vertex {}, which the file does not "
                                        "define (a dangling edge)",
-                                       edge.id_i, edge.id_j, id));
+                                       edge.id_i,
+                                       edge.id_j,
+                                       id));
         }
       }
     }
@@ -268,10 +284,13 @@ void CheckG2oConnected(const G2oGraph& graph, const std::string& path) {
     if (unreached == ids.size() && sets.Find(k) != sets.Find(first)) unreached = k;
   }
   if (num_components > 1) {
-    throw InputError(path, "line " + std::to_string(lines[unreached]),
+    throw InputError(path,
+                     "line " + std::to_string(lines[unreached]),
                      fmt::format("expected a connected pose graph, found vertex {} joined to the "
                                  "first vertex {} by no chain of edges ({} connected components)",
-                                 ids[unreached], ids[first], num_components));
+                                 ids[unreached],
+                                 ids[first],
+                                 num_components));
   }
 }
 
@@ -281,8 +300,9 @@ void WriteG2o(const G2oGraph& graph, const std::string& path) {
   const bool planar = graph.dimension == 2;
   std::vector<const G2oVertex*> vertices;
   for (const G2oVertex& vertex : graph.vertices) vertices.push_back(&vertex);
-  std::sort(vertices.begin(), vertices.end(),
-            [](const G2oVertex* a, const G2oVertex* b) { return a->id < b->id; });
+  std::sort(vertices.begin(), vertices.end(), [](const G2oVertex* a, const G2oVertex* b) {
+    return a->id < b->id;
+  });
   std::ostringstream out;
   std::vector<std::string> fields;
   const auto flush = [&] {

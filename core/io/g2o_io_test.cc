@@ -1,10 +1,10 @@
 #include "core/io/g2o_io.h"
 
+#include <gtest/gtest.h>
+
 #include <cmath>
 #include <string>
 #include <vector>
-
-#include <gtest/gtest.h>
 
 #include "core/file_utils.h"
 #include "tests/common/test_utils.h"
@@ -13,8 +13,7 @@ namespace lisfm {
 namespace {
 
 constexpr char kEdge2Info[] = "100 0 0 100 0 1000";
-const std::string kEdge3Info =
-    "100 0 0 0 0 0 100 0 0 0 0 100 0 0 0 400 0 0 400 0 400";
+const std::string kEdge3Info = "100 0 0 0 0 0 100 0 0 0 0 100 0 0 0 400 0 0 400 0 400";
 
 MatX RandomInformation(int n) {
   std::normal_distribution<double> normal(0.0, 1.0);
@@ -54,21 +53,22 @@ void ExpectSameGraph(const G2oGraph& expected, const G2oGraph& actual) {
   ASSERT_EQ(expected.dimension, actual.dimension);
   // Vertices come back sorted by id.
   std::vector<G2oVertex> sorted = expected.vertices;
-  std::sort(sorted.begin(), sorted.end(),
-            [](const G2oVertex& a, const G2oVertex& b) { return a.id < b.id; });
+  std::sort(sorted.begin(), sorted.end(), [](const G2oVertex& a, const G2oVertex& b) {
+    return a.id < b.id;
+  });
   ASSERT_EQ(sorted.size(), actual.vertices.size());
   for (size_t k = 0; k < sorted.size(); ++k) {
     EXPECT_EQ(sorted[k].id, actual.vertices[k].id);
     // 17 significant digits; 2D goes through theta = atan2 and back (~1e-15).
-    EXPECT_TRUE(test::PosesNear(sorted[k].world_from_vertex, actual.vertices[k].world_from_vertex,
-                                1e-13, 1e-13));
+    EXPECT_TRUE(test::PosesNear(
+        sorted[k].world_from_vertex, actual.vertices[k].world_from_vertex, 1e-13, 1e-13));
   }
   ASSERT_EQ(expected.edges.size(), actual.edges.size());
   for (size_t k = 0; k < expected.edges.size(); ++k) {
     EXPECT_EQ(expected.edges[k].id_i, actual.edges[k].id_i);
     EXPECT_EQ(expected.edges[k].id_j, actual.edges[k].id_j);
-    EXPECT_TRUE(test::PosesNear(expected.edges[k].i_from_j, actual.edges[k].i_from_j, 1e-13,
-                                1e-13));
+    EXPECT_TRUE(
+        test::PosesNear(expected.edges[k].i_from_j, actual.edges[k].i_from_j, 1e-13, 1e-13));
     EXPECT_EQ(expected.edges[k].information, actual.edges[k].information);
   }
 }
@@ -96,29 +96,30 @@ TEST(G2oIo, ReadsFieldsInG2oOrder) {
   ASSERT_EQ(g2.dimension, 2);
   ASSERT_EQ(g2.vertices.size(), 2u);
   EXPECT_EQ(g2.vertices[1].line, 2);
-  EXPECT_TRUE(test::PosesNear(
-      g2.vertices[1].world_from_vertex,
-      SE3(Quat(Eigen::AngleAxisd(0.5, Vec3::UnitZ())), Vec3(1.5, -2, 0)), 1e-15, 1e-15));
+  EXPECT_TRUE(test::PosesNear(g2.vertices[1].world_from_vertex,
+                              SE3(Quat(Eigen::AngleAxisd(0.5, Vec3::UnitZ())), Vec3(1.5, -2, 0)),
+                              1e-15,
+                              1e-15));
   ASSERT_EQ(g2.edges.size(), 1u);
   EXPECT_EQ(g2.edges[0].line, 4);
   EXPECT_TRUE(test::PosesNear(g2.edges[0].i_from_j,
                               SE3(Quat(Eigen::AngleAxisd(0.25, Vec3::UnitZ())), Vec3(1, 2, 0)),
-                              1e-15, 1e-15));
+                              1e-15,
+                              1e-15));
   Eigen::Matrix3d info2;
   info2 << 10, 1, 2, 1, 20, 3, 2, 3, 30;
   EXPECT_EQ(g2.edges[0].information, MatX(info2));
 
   const std::string path3 = dir.File("b.g2o");
-  test::WriteText(path3,
-                  "EDGE_SE3:QUAT 4 7 1 2 3 0 0 0.6 0.8 " + kEdge3Info + "\n");
+  test::WriteText(path3, "EDGE_SE3:QUAT 4 7 1 2 3 0 0 0.6 0.8 " + kEdge3Info + "\n");
   const G2oGraph g3 = ReadG2o(path3);
   ASSERT_EQ(g3.dimension, 3);
   EXPECT_TRUE(g3.vertices.empty());  // files without vertices are allowed
   ASSERT_EQ(g3.edges.size(), 1u);
   EXPECT_EQ(g3.edges[0].id_i, 4);
   EXPECT_EQ(g3.edges[0].id_j, 7);
-  EXPECT_TRUE(test::PosesNear(g3.edges[0].i_from_j, SE3(Quat(0.8, 0, 0, 0.6), Vec3(1, 2, 3)),
-                              1e-15, 1e-15));
+  EXPECT_TRUE(test::PosesNear(
+      g3.edges[0].i_from_j, SE3(Quat(0.8, 0, 0, 0.6), Vec3(1, 2, 3)), 1e-15, 1e-15));
   EXPECT_EQ(g3.edges[0].information(0, 0), 100);
   EXPECT_EQ(g3.edges[0].information(3, 3), 400);  // rotation block after translation
 
@@ -185,21 +186,23 @@ TEST(G2oIo, BadInputNamesFileAndLine) {
     fragments.push_back(path);
     EXPECT_TRUE(test::ThrowsInputError([&] { ReadG2o(path); }, fragments)) << c.contents;
   }
-  EXPECT_TRUE(test::ThrowsInputError([&] { ReadG2o(dir.File("missing.g2o")); },
-                                     {dir.File("missing.g2o")}));
+  EXPECT_TRUE(
+      test::ThrowsInputError([&] { ReadG2o(dir.File("missing.g2o")); }, {dir.File("missing.g2o")}));
 }
 
 TEST(G2oIo, ConnectivityNamesAnUnreachedVertex) {
   test::TempDir dir;
   const std::string path = dir.File("split.g2o");
-  test::WriteText(path, std::string("VERTEX_SE2 0 0 0 0\nVERTEX_SE2 1 1 0 0\nVERTEX_SE2 2 2 0 0\n") +
-                            "EDGE_SE2 0 1 1 0 0 " + kEdge2Info + "\n");
+  test::WriteText(path,
+                  std::string("VERTEX_SE2 0 0 0 0\nVERTEX_SE2 1 1 0 0\nVERTEX_SE2 2 2 0 0\n") +
+                      "EDGE_SE2 0 1 1 0 0 " + kEdge2Info + "\n");
   const G2oGraph graph = ReadG2o(path);
   EXPECT_TRUE(test::ThrowsInputError([&] { CheckG2oConnected(graph, path); },
                                      {path, "line 3", "vertex 2", "2 connected components"}));
   // Without vertices the unreached pose is named by the edge that introduces it.
-  test::WriteText(path, std::string("EDGE_SE2 0 1 1 0 0 ") + kEdge2Info + "\nEDGE_SE2 2 3 1 0 0 " +
-                            kEdge2Info + "\n");
+  test::WriteText(path,
+                  std::string("EDGE_SE2 0 1 1 0 0 ") + kEdge2Info + "\nEDGE_SE2 2 3 1 0 0 " +
+                      kEdge2Info + "\n");
   const G2oGraph edges_only = ReadG2o(path);
   EXPECT_TRUE(test::ThrowsInputError([&] { CheckG2oConnected(edges_only, path); },
                                      {path, "line 2", "vertex 2"}));

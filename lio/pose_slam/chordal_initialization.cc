@@ -1,10 +1,9 @@
 #include "lio/pose_slam/chordal_initialization.h"
 
-#include <numeric>
-
 #include <Eigen/SVD>
 #include <Eigen/SparseCholesky>
 #include <Eigen/SparseCore>
+#include <numeric>
 
 #include "core/errors.h"
 
@@ -68,9 +67,9 @@ double ChordalObjective(const std::vector<ChordalMeasurement>& measurements,
     const SE3& a = world_from_pose.at(m.i);
     const SE3& b = world_from_pose.at(m.j);
     const Mat3 Ra = a.RotationMatrix();
-    sum += m.kappa * (b.RotationMatrix() - Ra * m.i_from_j.RotationMatrix()).squaredNorm() +
-           m.tau * (b.translation() - a.translation() - Ra * m.i_from_j.translation())
-                       .squaredNorm();
+    sum +=
+        m.kappa * (b.RotationMatrix() - Ra * m.i_from_j.RotationMatrix()).squaredNorm() +
+        m.tau * (b.translation() - a.translation() - Ra * m.i_from_j.translation()).squaredNorm();
   }
   return sum;
 }
@@ -118,8 +117,7 @@ std::vector<SE3> ChordalInitialization(int dimension,
   triplets.clear();
   MatX rhs_t = MatX::Zero(n, d);
   for (const ChordalMeasurement& m : measurements) {
-    const Eigen::RowVectorXd c =
-        (rotations[m.i] * m.i_from_j.translation()).head(d).transpose();
+    const Eigen::RowVectorXd c = (rotations[m.i] * m.i_from_j.translation()).head(d).transpose();
     const int i = m.i - 1, j = m.j - 1;
     if (i >= 0) {
       triplets.emplace_back(i, i, m.tau);

@@ -1,9 +1,9 @@
 #include "lio/pose_slam/chordal_initialization.h"
 
+#include <gtest/gtest.h>
+
 #include <cmath>
 #include <vector>
-
-#include <gtest/gtest.h>
 
 #include "core/errors.h"
 #include "tests/common/test_utils.h"

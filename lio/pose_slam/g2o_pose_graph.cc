@@ -1,11 +1,10 @@
 #include "lio/pose_slam/g2o_pose_graph.h"
 
+#include <Eigen/LU>
 #include <algorithm>
 #include <chrono>
 #include <limits>
 #include <unordered_map>
-
-#include <Eigen/LU>
 
 #include "core/errors.h"
 #include "core/option_check.h"
@@ -28,7 +27,8 @@ SeSyncWeights SeSyncEdgeWeights(const G2oEdge& edge, int dimension) {
 }
 
 bool G2oOptimizationOptions::Check() const {
-  CHECK_OPTION_MSG(initialization, initialization == "chordal" || initialization == "vertices",
+  CHECK_OPTION_MSG(initialization,
+                   initialization == "chordal" || initialization == "vertices",
                    "one of chordal, vertices");
   CHECK_OPTION_NESTED(solver);
   return true;
@@ -58,8 +58,8 @@ G2oOptimizationResult OptimizeG2oGraph(const G2oGraph& graph,
   measurements.reserve(graph.edges.size());
   for (const G2oEdge& edge : graph.edges) {
     const SeSyncWeights w = SeSyncEdgeWeights(edge, graph.dimension);
-    measurements.push_back({index.at(edge.id_i), index.at(edge.id_j), edge.i_from_j, w.kappa,
-                            w.tau});
+    measurements.push_back(
+        {index.at(edge.id_i), index.at(edge.id_j), edge.i_from_j, w.kappa, w.tau});
   }
   std::vector<SE3> file_poses;
   if (!graph.vertices.empty()) {
@@ -74,8 +74,9 @@ G2oOptimizationResult OptimizeG2oGraph(const G2oGraph& graph,
 
   std::vector<SE3> initial;
   if (options.initialization == "vertices") {
-    THROW_CHECK_MSG(!file_poses.empty(), "OptimizeG2oGraph: vertices initialisation without "
-                                         "vertices");
+    THROW_CHECK_MSG(!file_poses.empty(),
+                    "OptimizeG2oGraph: vertices initialisation without "
+                    "vertices");
     initial = file_poses;
   } else {
     const auto start = std::chrono::steady_clock::now();

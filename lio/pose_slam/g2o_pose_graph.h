@@ -51,10 +51,9 @@ struct G2oOptimizationResult {
 // ReadG2o and is connected (CheckG2oConnected); "vertices" initialisation needs
 // vertices. Broken preconditions throw InternalError.
 // `on_iteration`: PoseGraph::Solve's progress callback (iteration, Ceres cost = F / 2).
-G2oOptimizationResult OptimizeG2oGraph(
-    const G2oGraph& graph,
-    const G2oOptimizationOptions& options,
-    const std::function<void(int, double)>& on_iteration = {});
+G2oOptimizationResult OptimizeG2oGraph(const G2oGraph& graph,
+                                       const G2oOptimizationOptions& options,
+                                       const std::function<void(int, double)>& on_iteration = {});
 
 // `graph` with one vertex per pose of `result` (the optimised poses), edges unchanged.
 G2oGraph WithOptimizedVertices(const G2oGraph& graph, const G2oOptimizationResult& result);

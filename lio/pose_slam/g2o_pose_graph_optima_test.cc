@@ -1,12 +1,11 @@
 // SE-Sync's published optima on the larger benchmark graphs (the small ones
 // are in g2o_pose_graph_test.cc).
-#include "lio/pose_slam/g2o_pose_graph.h"
+#include <gtest/gtest.h>
 
 #include <string>
 
-#include <gtest/gtest.h>
-
 #include "core/io/g2o_io.h"
+#include "lio/pose_slam/g2o_pose_graph.h"
 #include "tests/common/test_utils.h"
 
 namespace lisfm {
@@ -22,8 +21,8 @@ void ExpectReachesOptimum(const std::string& name, double published_optimum) {
   CheckG2oConnected(graph, path);
   const G2oOptimizationResult result = OptimizeG2oGraph(graph, G2oOptimizationOptions());
   EXPECT_TRUE(result.solve.usable) << name << ": " << result.solve.message;
-  EXPECT_NEAR(result.objective_final, published_optimum,
-              kPublishedRelativeTolerance * published_optimum)
+  EXPECT_NEAR(
+      result.objective_final, published_optimum, kPublishedRelativeTolerance * published_optimum)
       << name << ": chordal F = " << result.objective_initial << ", " << result.solve.iterations
       << " iterations, " << result.solve.message;
 }

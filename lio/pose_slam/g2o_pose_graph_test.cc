@@ -1,10 +1,10 @@
 #include "lio/pose_slam/g2o_pose_graph.h"
 
+#include <gtest/gtest.h>
+
 #include <cmath>
 #include <map>
 #include <string>
-
-#include <gtest/gtest.h>
 
 #include "core/io/g2o_io.h"
 #include "tests/common/test_utils.h"
@@ -24,8 +24,8 @@ void ExpectReachesOptimum(const std::string& name, double published_optimum) {
   const G2oOptimizationResult result = OptimizeG2oGraph(graph, G2oOptimizationOptions());
   EXPECT_TRUE(result.solve.usable) << name << ": " << result.solve.message;
   EXPECT_LE(result.objective_final, result.objective_initial) << name;
-  EXPECT_NEAR(result.objective_final, published_optimum,
-              kPublishedRelativeTolerance * published_optimum)
+  EXPECT_NEAR(
+      result.objective_final, published_optimum, kPublishedRelativeTolerance * published_optimum)
       << name << ": chordal F = " << result.objective_initial << ", " << result.solve.iterations
       << " iterations, " << result.solve.message;
 }
@@ -85,8 +85,8 @@ TEST(G2oPoseGraph, VerticesAndChordalStartsAgree) {
 // Real graphs that solve in about a second each.
 TEST(G2oPoseGraph, ReachesPublishedOptimumOnSmallRealGraphs) {
   LISFM_REQUIRE_SHARED_DATA("pose_graphs/intel.g2o");
-  ExpectReachesOptimum("intel.g2o", 52.35);        // 2D, 1,728 poses
-  ExpectReachesOptimum("CSAIL.g2o", 31.70);        // 2D, no vertices
+  ExpectReachesOptimum("intel.g2o", 52.35);           // 2D, 1,728 poses
+  ExpectReachesOptimum("CSAIL.g2o", 31.70);           // 2D, no vertices
   ExpectReachesOptimum("parking-garage.g2o", 1.263);  // 3D, 1,661 poses
 }
 

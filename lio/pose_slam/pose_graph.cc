@@ -1,17 +1,17 @@
 #include "lio/pose_slam/pose_graph.h"
 
+#include <ceres/covariance.h>
+#include <ceres/iteration_callback.h>
+#include <ceres/loss_function.h>
+#include <ceres/solver.h>
+#include <fmt/format.h>
+
+#include <Eigen/Cholesky>
 #include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <thread>
 #include <utility>
-
-#include <ceres/covariance.h>
-#include <ceres/iteration_callback.h>
-#include <ceres/loss_function.h>
-#include <ceres/solver.h>
-#include <Eigen/Cholesky>
-#include <fmt/format.h>
 
 #include "core/errors.h"
 #include "core/logging.h"
@@ -72,7 +72,8 @@ bool PoseGraphSolverOptions::Check() const {
 }
 
 bool RobustLossOptions::Check() const {
-  CHECK_OPTION_MSG(kernel, kernel == "none" || kernel == "huber" || kernel == "cauchy",
+  CHECK_OPTION_MSG(kernel,
+                   kernel == "none" || kernel == "huber" || kernel == "cauchy",
                    "one of none, huber, cauchy");
   CHECK_OPTION_GT(scale, 0.0);
   return true;
@@ -146,11 +147,8 @@ bool PoseGraph::IsPoseConstant(int index) const {
   return constant_[index];
 }
 
-PoseGraph::FactorId PoseGraph::AddChordalFactor(int i,
-                                                int j,
-                                                const SE3& i_from_j,
-                                                double kappa,
-                                                double tau) {
+PoseGraph::FactorId PoseGraph::AddChordalFactor(
+    int i, int j, const SE3& i_from_j, double kappa, double tau) {
   CheckIndex(i);
   CheckIndex(j);
   THROW_CHECK_MSG(kappa > 0.0 && tau > 0.0 && std::isfinite(kappa) && std::isfinite(tau),
@@ -166,11 +164,8 @@ PoseGraph::FactorId PoseGraph::AddChordalFactor(int i,
   return problem_->AddResidualBlock(cost, nullptr, poses_[i].data(), poses_[j].data());
 }
 
-PoseGraph::FactorId PoseGraph::AddRelativePoseFactor(int i,
-                                                     int j,
-                                                     const SE3& i_from_j,
-                                                     const Mat6& information,
-                                                     const RobustLossOptions& loss) {
+PoseGraph::FactorId PoseGraph::AddRelativePoseFactor(
+    int i, int j, const SE3& i_from_j, const Mat6& information, const RobustLossOptions& loss) {
   THROW_CHECK_MSG(dimension_ == 3, "PoseGraph: relative pose factors need a 3D graph");
   CheckIndex(i);
   CheckIndex(j);
@@ -181,13 +176,15 @@ PoseGraph::FactorId PoseGraph::AddRelativePoseFactor(int i,
   // information = L L^T (L lower) = (L^T)^T (L^T): the residual is L^T e.
   const Mat6 sqrt_information = llt.matrixL().transpose();
   return problem_->AddResidualBlock(RelativePoseFactor::Create(i_from_j, sqrt_information),
-                                    MakeLoss(loss), poses_[i].data(), poses_[j].data());
+                                    MakeLoss(loss),
+                                    poses_[i].data(),
+                                    poses_[j].data());
 }
 
 double PoseGraph::SquaredResidual(FactorId factor) const {
   double cost = 0.0;
-  THROW_CHECK(problem_->EvaluateResidualBlock(factor, /*apply_loss_function=*/false, &cost,
-                                              nullptr, nullptr));
+  THROW_CHECK(problem_->EvaluateResidualBlock(
+      factor, /*apply_loss_function=*/false, &cost, nullptr, nullptr));
   return 2.0 * cost;
 }
 
@@ -204,7 +201,8 @@ double PoseGraph::Objective() const {
 PoseGraphSolveSummary PoseGraph::Solve(const PoseGraphSolverOptions& options,
                                        const std::function<void(int, double)>& on_iteration) {
   THROW_CHECK_MSG(options.Check(), "PoseGraph::Solve: " << LastOptionCheckFailure().ToString());
-  if (num_poses() > 0 && std::none_of(constant_.begin(), constant_.end(), [](bool c) { return c; })) {
+  if (num_poses() > 0 &&
+      std::none_of(constant_.begin(), constant_.end(), [](bool c) { return c; })) {
     SetPoseConstant(0);
   }
   ceres::Solver::Options solver_options;
@@ -213,7 +211,7 @@ PoseGraphSolveSummary PoseGraph::Solve(const PoseGraphSolverOptions& options,
   solver_options.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;
   solver_options.sparse_linear_algebra_library_type =
       ceres::IsSparseLinearAlgebraLibraryTypeAvailable(ceres::SUITE_SPARSE) ? ceres::SUITE_SPARSE
-                                                                             : ceres::EIGEN_SPARSE;
+                                                                            : ceres::EIGEN_SPARSE;
   solver_options.max_num_iterations = options.max_num_iterations;
   solver_options.function_tolerance = options.function_tolerance;
   solver_options.gradient_tolerance = options.gradient_tolerance;
@@ -230,18 +228,18 @@ PoseGraphSolveSummary PoseGraph::Solve(const PoseGraphSolverOptions& options,
   ceres::Solve(solver_options, problem_.get(), &ceres_summary);
   if (options.verbose) LogDebug("{}", ceres_summary.FullReport());
   PoseGraphSolveSummary summary;
-  summary.seconds =
-      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  summary.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   summary.converged = ceres_summary.termination_type == ceres::CONVERGENCE;
   summary.usable = ceres_summary.IsSolutionUsable();
   summary.iterations = static_cast<int>(ceres_summary.iterations.size()) - 1;  // 0: the start
   summary.iterations = std::max(summary.iterations, 0);
   summary.initial_cost = ceres_summary.initial_cost;
   summary.final_cost = ceres_summary.final_cost;
-  summary.linear_solver = fmt::format(
-      "{} ({})", ceres::LinearSolverTypeToString(ceres_summary.linear_solver_type_used),
-      ceres::SparseLinearAlgebraLibraryTypeToString(
-          solver_options.sparse_linear_algebra_library_type));
+  summary.linear_solver =
+      fmt::format("{} ({})",
+                  ceres::LinearSolverTypeToString(ceres_summary.linear_solver_type_used),
+                  ceres::SparseLinearAlgebraLibraryTypeToString(
+                      solver_options.sparse_linear_algebra_library_type));
   summary.message = std::string(ceres::TerminationTypeToString(ceres_summary.termination_type)) +
                     ": " + ceres_summary.message;
   return summary;
@@ -269,7 +267,7 @@ std::vector<MatX> PoseGraph::PoseCovariances(const std::vector<int>& indices) {
     MatX block = MatX::Zero(tangent, tangent);
     if (!constant_[index]) {
       Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> row_major(tangent,
-                                                                                      tangent);
+                                                                                       tangent);
       THROW_CHECK(covariance.GetCovarianceBlockInTangentSpace(
           poses_[index].data(), poses_[index].data(), row_major.data()));
       block = row_major;

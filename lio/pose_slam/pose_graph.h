@@ -16,13 +16,13 @@
 // Not thread-safe; Solve() itself uses options.num_threads threads.
 #pragma once
 
+#include <ceres/problem.h>
+
 #include <deque>
 #include <functional>
 #include <memory>
 #include <string>
 #include <vector>
-
-#include <ceres/problem.h>
 
 #include "core/geometry.h"
 #include "lio/pose_slam/pose_manifold.h"

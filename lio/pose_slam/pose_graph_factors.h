@@ -5,12 +5,12 @@
 // T_i^-1 T_j = (R_i^T R_j, R_i^T (t_j - t_i)).
 #pragma once
 
-#include <cmath>
-
 #include <ceres/autodiff_cost_function.h>
 #include <ceres/rotation.h>
+
 #include <Eigen/Core>
 #include <Eigen/Geometry>
+#include <cmath>
 
 #include "core/geometry.h"
 
@@ -81,8 +81,8 @@ struct ChordalFactor2 {
     return true;
   }
 
-  static ceres::CostFunction* Create(double dx, double dy, double dtheta, double kappa,
-                                     double tau) {
+  static ceres::CostFunction* Create(
+      double dx, double dy, double dtheta, double kappa, double tau) {
     return new ceres::AutoDiffCostFunction<ChordalFactor2, 3, 3, 3>(
         new ChordalFactor2(dx, dy, dtheta, kappa, tau));
   }

@@ -1,12 +1,12 @@
 #include "lio/pose_slam/pose_graph.h"
 
-#include <cmath>
-#include <memory>
-#include <vector>
-
 #include <ceres/manifold_test_utils.h>
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
+
+#include <cmath>
+#include <memory>
+#include <vector>
 
 #include "core/errors.h"
 #include "lio/pose_slam/pose_graph_factors.h"
@@ -66,12 +66,13 @@ TEST(PoseManifold, PlusIsTheRightPerturbation) {
   const Vec6 xi = RandomTangent(0.5);
   Block out;
   manifold.Plus(ToBlock(pose).data(), xi.data(), out.data());
-  EXPECT_TRUE(test::PosesNear(PoseManifold::FromBlock(out.data()), Retract(pose, xi), 1e-14, 1e-14));
+  EXPECT_TRUE(
+      test::PosesNear(PoseManifold::FromBlock(out.data()), Retract(pose, xi), 1e-14, 1e-14));
   // First order agreement with T * Exp(xi) on SE(3): the difference is O(|xi|^2).
   const Vec6 small = 1e-4 * xi / xi.norm();
   manifold.Plus(ToBlock(pose).data(), small.data(), out.data());
-  EXPECT_TRUE(test::PosesNear(PoseManifold::FromBlock(out.data()), pose * SE3::Exp(small), 1e-14,
-                              1e-7));
+  EXPECT_TRUE(
+      test::PosesNear(PoseManifold::FromBlock(out.data()), pose * SE3::Exp(small), 1e-14, 1e-7));
 }
 
 // Ceres' covariance lives in the tangent space through PlusJacobian /
@@ -141,9 +142,10 @@ TEST(PoseGraphFactors, TangentJacobiansMatchNumericDifferences) {
             VecX::Zero(6));
         // Step 1e-6 central differences: O(1e-12) truncation, O(1e-10) rounding
         // relative to the largest entry.
-        EXPECT_LT((analytic - numeric).cwiseAbs().maxCoeff(),
-                  1e-7 * analytic.cwiseAbs().maxCoeff())
-            << "block " << b << "\nanalytic\n" << analytic << "\nnumeric\n" << numeric;
+        EXPECT_LT((analytic - numeric).cwiseAbs().maxCoeff(), 1e-7 * analytic.cwiseAbs().maxCoeff())
+            << "block " << b << "\nanalytic\n"
+            << analytic << "\nnumeric\n"
+            << numeric;
       }
     }
   }
@@ -199,7 +201,8 @@ TEST(PoseGraph, RecoversConsistentPosesFromPerturbedStart) {
                         Vec3(5.0 * std::cos(angle), 5.0 * std::sin(angle), 0.3 * k)));
   }
   PoseGraph graph;
-  for (int k = 0; k < n; ++k) graph.AddPose(k == 0 ? truth[0] : Retract(truth[k], RandomTangent(0.1)));
+  for (int k = 0; k < n; ++k)
+    graph.AddPose(k == 0 ? truth[0] : Retract(truth[k], RandomTangent(0.1)));
   for (int k = 0; k < n; ++k) {
     for (const int step : {1, 3}) {
       const int j = (k + step) % n;
@@ -251,8 +254,8 @@ TEST(PoseGraph, RobustLossAndFactorRemoval) {
   for (int k = 0; k < n; ++k) {
     for (const int step : {1, 2}) {
       if (k + step < n) {
-        graph.AddRelativePoseFactor(k, k + step, truth[k].Inverse() * truth[k + step],
-                                    information, cauchy);
+        graph.AddRelativePoseFactor(
+            k, k + step, truth[k].Inverse() * truth[k + step], information, cauchy);
       }
     }
   }
@@ -274,8 +277,8 @@ TEST(PoseGraph, PlanarGraph) {
   const auto planar = [](double x, double y, double theta) {
     return SE3(Quat(Eigen::AngleAxisd(theta, Vec3::UnitZ())), Vec3(x, y, 0.0));
   };
-  const std::vector<SE3> truth = {planar(0, 0, 0), planar(1, 0, 1.5), planar(1, 2, 3.0),
-                                  planar(-1, 2, -1.6)};
+  const std::vector<SE3> truth = {
+      planar(0, 0, 0), planar(1, 0, 1.5), planar(1, 2, 3.0), planar(-1, 2, -1.6)};
   graph.AddPose(truth[0]);
   graph.AddPose(planar(1.2, 0.1, 1.3));
   graph.AddPose(planar(0.8, 2.3, 2.8));

@@ -60,9 +60,9 @@ TEST(PoseGraphCommand, IntelReachesOptimumAndWritesTheGraph) {
   TempDir dir;
   const std::string output = dir.File("out/intel_optimized.g2o");
   int code = 0;
-  std::string out = Lisfm("--input_path " + test::SharedData("pose_graphs/intel.g2o") +
-                              " --output_path " + output,
-                          &code);
+  std::string out = Lisfm(
+      "--input_path " + test::SharedData("pose_graphs/intel.g2o") + " --output_path " + output,
+      &code);
   ASSERT_EQ(code, 0) << out;
   const auto fields = Fields(out);
   EXPECT_EQ(fields.at("dimension"), "2");
@@ -111,7 +111,8 @@ TEST(PoseGraphCommand, BadInputIsOneErrorAndNoOutput) {
   const std::vector<Case> cases = {
       {"unknown_tag", good + "FIX 0\n", "line 4: unknown tag 'FIX'"},
       {"dangling", good + "EDGE_SE2 1 7 1 0 0" + info, "line 4: edge 1 -> 7 names vertex 7"},
-      {"nan", "VERTEX_SE2 0 0 0 0\nVERTEX_SE2 1 nan 0 0\nEDGE_SE2 0 1 1 0 0" + info,
+      {"nan",
+       "VERTEX_SE2 0 0 0 0\nVERTEX_SE2 1 nan 0 0\nEDGE_SE2 0 1 1 0 0" + info,
        "line 2: VERTEX_SE2: field 2: expected a finite number, found 'nan'"},
       {"fields", good + "EDGE_SE2 0 1 1 0" + info, "line 4: EDGE_SE2: expected 11 fields"},
       {"twice", good + "VERTEX_SE2 1 2 0 0\n", "line 4: VERTEX_SE2: vertex 1 is defined twice"},
@@ -125,8 +126,8 @@ TEST(PoseGraphCommand, BadInputIsOneErrorAndNoOutput) {
     const std::string out =
         Lisfm("--input_path " + input + " --output_path " + output_dir + "/graph.g2o", &code);
     EXPECT_EQ(code, 1) << c.name << "\n" << out;
-    EXPECT_NE(out.find("error: " + input + ":" + c.expected), std::string::npos)
-        << c.name << "\n" << out;
+    EXPECT_NE(out.find("error: " + input + ":" + c.expected), std::string::npos) << c.name << "\n"
+                                                                                 << out;
     EXPECT_EQ(out.find("error: "), out.rfind("error: ")) << out;  // one error line
     // The output folder was created by the up-front check, but holds nothing.
     EXPECT_FALSE(std::filesystem::exists(output_dir + "/graph.g2o")) << c.name;
@@ -138,10 +139,11 @@ TEST(PoseGraphCommand, BadInputIsOneErrorAndNoOutput) {
   const std::string edges_only = dir.File("edges_only.g2o");
   test::WriteText(edges_only, "EDGE_SE2 0 1 1 0 0" + info);
   int code = 0;
-  std::string out = Lisfm("--input_path " + edges_only + " --PoseGraph.initialization vertices",
-                          &code);
+  std::string out =
+      Lisfm("--input_path " + edges_only + " --PoseGraph.initialization vertices", &code);
   EXPECT_EQ(code, 1) << out;
-  EXPECT_NE(out.find("error: " + edges_only + ": --PoseGraph.initialization vertices needs "
+  EXPECT_NE(out.find("error: " + edges_only +
+                     ": --PoseGraph.initialization vertices needs "
                      "VERTEX records"),
             std::string::npos)
       << out;
@@ -158,10 +160,14 @@ TEST(PoseGraphCommand, HelpListsEveryOption) {
   int code = 0;
   const std::string out = Lisfm("-h", &code);
   EXPECT_EQ(code, 0) << out;
-  for (const char* option :
-       {"--input_path", "--output_path", "--PoseGraph.initialization", "--Solver.max_num_iterations",
-        "--Solver.function_tolerance", "--Solver.gradient_tolerance", "--Solver.parameter_tolerance",
-        "--Solver.num_threads"}) {
+  for (const char* option : {"--input_path",
+                             "--output_path",
+                             "--PoseGraph.initialization",
+                             "--Solver.max_num_iterations",
+                             "--Solver.function_tolerance",
+                             "--Solver.gradient_tolerance",
+                             "--Solver.parameter_tolerance",
+                             "--Solver.num_threads"}) {
     EXPECT_NE(out.find(option), std::string::npos) << option << "\n" << out;
   }
 }
