@@ -16,7 +16,8 @@
 //
 // Prints `key: value` lines: poses, edges, edges_block_diagonal, iterations,
 // termination, solve_s, cost (Ceres' 1/2 sum ||r||^2), F_final (SE-Sync's
-// objective at the example's solution).
+// objective at the example's solution), jacobian_s and linear_solver_s
+// (Ceres' time in Jacobian evaluation and in the linear solver).
 // Usage: lisfm_pose_graph_ceres_example GRAPH.g2o [--init chordal] [--threads N]
 #include <ceres/autodiff_cost_function.h>
 #include <ceres/manifold.h>
@@ -179,7 +180,7 @@ int Main(int argc, char** argv) {
   std::printf(
       "poses: %zu\nedges: %zu\nedges_block_diagonal: %d\ninitialization: %s\n"
       "iterations: %d\ntermination: %s\ninit_s: %.3f\nsetup_s: %.3f\nsolve_s: %.3f\n"
-      "cost: %.9g\nF_final: %.9g\n",
+      "cost: %.9g\nF_final: %.9g\njacobian_s: %.3f\nlinear_solver_s: %.3f\n",
       poses.size(),
       graph.edges.size(),
       block_diagonal,
@@ -190,7 +191,9 @@ int Main(int argc, char** argv) {
       std::chrono::duration<double>(solve_start - setup_start).count(),
       std::chrono::duration<double>(end - solve_start).count(),
       summary.final_cost,
-      ChordalObjective(measurements, solution));
+      ChordalObjective(measurements, solution),
+      summary.jacobian_evaluation_time_in_seconds,
+      summary.linear_solver_time_in_seconds);
   return 0;
 }
 
