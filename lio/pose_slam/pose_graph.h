@@ -37,7 +37,7 @@ struct PoseGraphSolverOptions {
   double gradient_tolerance = 1e-10;  // stop when max |projected gradient| is below this
   double parameter_tolerance = 1e-8;  // stop when |step| / (|x| + tol) is below this
   int num_threads = -1;               // Jacobian evaluation threads (-1 = all cores)
-  bool verbose = false;               // Ceres' own (glog) logging, and its full report in the debug log
+  bool verbose = false;               // Ceres' glog logging; its full report in the debug log
   bool Check() const;
 };
 
