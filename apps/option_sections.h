@@ -52,8 +52,15 @@ void AddTrajectoryEvaluationOptions(OptionManager* options,
 void AddSfmEvaluationOptions(OptionManager* options,
                              colmap::SfmEvaluationOptions* eval);
 
-// No section (lisfm simulate); `output_path` is required.
+// No section (lisfm simulate); `output_path` is required. Also registers
+// LidarErrors.*, CameraErrors.* and Materials.* (below) for sim's members.
 void AddSimulatorOptions(OptionManager* options, sim::SimulatorOptions* sim);
+// LidarErrors.*: the `lidar` error source of lisfm simulate.
+void AddLidarErrorOptions(OptionManager* options, sim::LidarErrorOptions* errors);
+// CameraErrors.*: the `camera` error source of lisfm simulate.
+void AddCameraErrorOptions(OptionManager* options, sim::CameraErrorOptions* errors);
+// Materials.*: surface materials of the simulated scenes.
+void AddMaterialOptions(OptionManager* options, sim::MaterialOptions* materials);
 
 // Mapper.* and the stages: Priors.*, ViewGraph.*, RotationAveraging.*,
 // TranslationAveraging.*, Triangulation.* (tracks and triangulation),

@@ -21,7 +21,7 @@ simulate() {  # name, extra args
   local name=$1; shift
   if [ ! -f "$WORK/$name/groundtruth.txt" ]; then
     "$LISFM" simulate --duration "$DURATION" --camera_rate 0 --output_path "$WORK/$name" \
-      --overwrite 1 --quiet "$@"
+      --error_sources none --overwrite 1 --quiet "$@"
   fi
 }
 simulate office_exp04 --scene office --trajectory_path "$EXP04"

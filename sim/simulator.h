@@ -20,6 +20,9 @@
 
 #include "core/rig.h"
 #include "core/time.h"
+#include "sim/camera_errors.h"
+#include "sim/lidar_simulator.h"
+#include "sim/materials.h"
 
 namespace lisfm {
 namespace sim {
@@ -40,9 +43,21 @@ struct SimulatorOptions {
   bool rgbd = false;              // add an RGB-D camera (rgbd0/)
   double rgbd_rate = 5.0;         // Hz
   bool overwrite = false;         // replace an earlier lisfm output folder at output_path
+  // Error sources beyond the sensor noise: a comma list of lidar, camera (or
+  // all, none); each needs noise_scale > 0. A source named explicitly for a
+  // sensor the recording does not have is an error.
+  std::string error_sources = "all";
+  LidarErrorOptions lidar_errors;    // the `lidar` source (sim/lidar_simulator.h)
+  CameraErrorOptions camera_errors;  // the `camera` source (sim/camera_errors.h)
+  MaterialOptions materials;         // surface materials (sim/materials.h)
 
   bool Check() const;
 };
+
+// The tokens `error_sources` accepts besides all and none.
+const std::vector<std::string>& ErrorSourceTokens();
+// Whether source `token` is on in the list `error_sources` (named, or "all").
+bool ErrorSourceEnabled(const std::string& error_sources, const std::string& token);
 
 struct SimulationSummary {
   std::string scene_type;

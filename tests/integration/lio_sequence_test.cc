@@ -36,6 +36,7 @@ Sequence SimulateSequence(const test::TempDir& dir,
   options.lidars = lidars;
   options.noise_scale = noise_scale;
   options.seed = 3;
+  options.error_sources = "none";  // the sensor noise only
   options.output_path = dir.File(name);
   Rig rig;  // the simulator's default rig: the HILTI 2022 LiDAR mounting
   sim::Simulate(options, sim::PrepareRig(rig, lidars));
@@ -278,6 +279,7 @@ Sequence SimulateStaircase(const test::TempDir& dir, double duration) {
   options.duration = duration;
   options.camera_rate = 0;
   options.seed = 3;
+  options.error_sources = "none";  // the sensor noise only
   options.output_path = dir.File("stairs");
   sim::Simulate(options, sim::PrepareRig(Rig(), "spinning"));
   return ReadSequence(options.output_path);
