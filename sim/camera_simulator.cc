@@ -55,15 +55,19 @@ CameraRenderer::CameraRenderer(const Scene& scene,
     }
   });
   if (options_.errors_enabled && options_.errors.motion_blur) {
-    // Central differences of the projection around each pixel's unit ray
-    // (step 1e-4: the truncation error is ~1e-8 of the Jacobian).
-    jacobians_.resize(static_cast<size_t>(w) * h);
+    // Central differences of the projection around the unit ray of each
+    // block's centre (step 1e-4: the truncation error is ~1e-8 of the
+    // Jacobian; across a block the Jacobian changes by ~1 %).
+    const int gw = (w + kJacobianBlock - 1) / kJacobianBlock;
+    const int gh = (h + kJacobianBlock - 1) / kJacobianBlock;
+    jacobians_.resize(static_cast<size_t>(gw) * gh);
     constexpr double kStep = 1e-4;
-    tbb::parallel_for(0, h, [&](int y) {
-      for (int x = 0; x < w; ++x) {
-        const size_t index = static_cast<size_t>(y) * w + x;
-        const Vec3 d = rays_[index * samples_].cast<double>();
-        Eigen::Matrix<float, 2, 3>& jac = jacobians_[index];
+    tbb::parallel_for(0, gh, [&](int by) {
+      for (int bx = 0; bx < gw; ++bx) {
+        const Vec2 centre(std::min(bx * kJacobianBlock + 0.5 * (kJacobianBlock - 1), w - 1.0),
+                          std::min(by * kJacobianBlock + 0.5 * (kJacobianBlock - 1), h - 1.0));
+        const Vec3 d = model_.Unproject(centre);
+        Eigen::Matrix<float, 2, 3>& jac = jacobians_[static_cast<size_t>(by) * gw + bx];
         jac.setZero();
         for (int a = 0; a < 3; ++a) {
           Vec2 plus, minus;
@@ -286,7 +290,10 @@ cv::Mat CameraRenderer::Render(const SE3& world_from_cam,
         Eigen::Vector2f motion = Eigen::Vector2f::Zero();
         if (s > 0) {
           const Eigen::Vector3f ray = rays_[index * samples_];
-          motion = jacobians_[index] * (d_rot * ray + d_trans / s);
+          const size_t block = static_cast<size_t>(y / kJacobianBlock) *
+                                   ((w + kJacobianBlock - 1) / kJacobianBlock) +
+                               x / kJacobianBlock;
+          motion = jacobians_[block] * (d_rot * ray + d_trans / s);
         }
         const float length = motion.norm();
         if (!(length >= 0.5f)) {  // under half a pixel (or not finite): sharp

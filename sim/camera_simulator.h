@@ -17,8 +17,8 @@
 // material albedo (sim/materials.h) lit by the scene lighting at the hit
 // point, the exposure time and gain of the auto exposure, motion blur along
 // each pixel's image motion between the exposure's start and end poses (the
-// pixel's hit point projected with the projection Jacobian at its ray, a
-// first-order model of the motion), and shot + read noise. The radiance is
+// pixel's hit point moved with the projection Jacobian at its 4x4 block's
+// centre ray, a first-order model of the motion), and shot + read noise. The radiance is
 // blurred before the noise, as on a real sensor.
 //
 // Thread safety: Render() is const and may run concurrently.
@@ -98,9 +98,11 @@ class CameraRenderer {
   std::vector<Eigen::Vector3f> rays_;   // per pixel, samples_ unit rays (camera frame)
   std::vector<float> vignette_;         // per pixel gain
   const SceneLighting* lighting_ = nullptr;
-  // Per pixel, the 2x3 Jacobian of the projection at its first ray (unit
-  // length): pixel motion = J (dX / s) for a point X = s ray moving by dX.
-  // Only with errors_enabled and motion blur.
+  // Per block of kJacobianBlock^2 pixels (row-major), the 2x3 Jacobian of the
+  // projection at the unit ray through the block's centre: pixel motion =
+  // J (dX / s) for a point X = s ray moving by dX. Only with errors_enabled
+  // and motion blur.
+  static constexpr int kJacobianBlock = 4;
   std::vector<Eigen::Matrix<float, 2, 3>> jacobians_;
 };
 
