@@ -243,9 +243,9 @@ PointCloud LidarSimulator::SimulateScanWithErrors(TimestampNs scan_start_ns,
     b->material = scene_.material_id(hit.surface_id);
     const float albedo =
         texture_.FootprintAlbedo(hit.surface_id, hit_world, TextureAxis(hit.normal));
-    b->reflectivity =
-        ApparentReflectivity(Materials()[b->material], albedo, b->cos_incidence);
-    b->albedo_intensity = Intensity(texture_, hit, hit_world, dir_world.cast<float>());
+    b->reflectivity = ApparentReflectivity(Materials()[b->material], albedo, b->cos_incidence);
+    // Intensity() of the path without error sources, from the same albedo.
+    b->albedo_intensity = std::fmin(255.f, 255.f * albedo * (0.2f + 0.8f * b->cos_incidence));
   };
   const bool spinning = lidar_.type == LidarType::kSpinning;
   int columns = 0, rings = 0;
