@@ -19,6 +19,18 @@ float Intensity(const Texture& texture, const RayHit& hit,
   return std::fmin(255.f, 255.f * albedo * (0.2f + 0.8f * cos_incidence));
 }
 
+// Solid-state direction (LiDAR frame, unit) at `tau` s since the trajectory
+// start: two incommensurate prism rotations (97.31 and 163.87 Hz), so the
+// rosette never repeats; `half_fov` in rad.
+Vec3 RosetteDirection(double tau, double half_fov) {
+  const double f1 = 97.31, f2 = 163.87;
+  const double r1 = 2 * M_PI * f1 * tau, r2 = 2 * M_PI * f2 * tau;
+  const double a = 0.5 * half_fov * (std::cos(r1) + std::cos(r2));
+  const double b = 0.5 * half_fov * (std::sin(r1) - std::sin(r2));
+  const double theta = std::hypot(a, b), phi = std::atan2(b, a);
+  return Vec3(std::cos(theta), std::sin(theta) * std::cos(phi), std::sin(theta) * std::sin(phi));
+}
+
 inline uint64_t Mix64(uint64_t x) {  // splitmix64 finaliser
   x ^= x >> 30;
   x *= 0xbf58476d1ce4e5b9ULL;
@@ -179,18 +191,10 @@ PointCloud LidarSimulator::SimulateScan(TimestampNs scan_start_ns, int64_t scan_
     const int n = static_cast<int>(std::floor(options_.livox_rate * period_s));
     raw.reserve(n);
     const double half_fov = 0.5 * options_.livox_fov_deg * M_PI / 180.0;
-    // Rosette frequencies (Hz), incommensurate so the pattern never repeats.
-    const double f1 = 97.31, f2 = 163.87;
     const double scan_start_s = NsToSeconds(scan_start_ns - trajectory_.start_ns());
     for (int i = 0; i < n; ++i) {
       const double t_s = i / options_.livox_rate;
-      const double tau = scan_start_s + t_s;
-      const double r1 = 2 * M_PI * f1 * tau, r2 = 2 * M_PI * f2 * tau;
-      const double a = 0.5 * half_fov * (std::cos(r1) + std::cos(r2));
-      const double b = 0.5 * half_fov * (std::sin(r1) - std::sin(r2));
-      const double theta = std::hypot(a, b), phi = std::atan2(b, a);
-      const Vec3 dir_lidar(std::cos(theta), std::sin(theta) * std::cos(phi),
-                           std::sin(theta) * std::sin(phi));
+      const Vec3 dir_lidar = RosetteDirection(scan_start_s + t_s, half_fov);
       const SE3 world_from_lidar =
           trajectory_.Pose(scan_start_ns + SecondsToNs(t_s)) * lidar_.imu_from_lidar;
       const Vec3 dir_world = world_from_lidar.rotation() * dir_lidar;
@@ -293,17 +297,10 @@ PointCloud LidarSimulator::SimulateScanWithErrors(TimestampNs scan_start_ns,
     const int n = static_cast<int>(std::floor(options_.livox_rate * period_s));
     beams.resize(n);
     const double half_fov = 0.5 * options_.livox_fov_deg * M_PI / 180.0;
-    const double f1 = 97.31, f2 = 163.87;  // the rosette of SimulateScan
     const double scan_start_s = NsToSeconds(scan_start_ns - trajectory_.start_ns());
     for (int i = 0; i < n; ++i) {
       const double t_s = i / options_.livox_rate;
-      const double tau = scan_start_s + t_s;
-      const double r1 = 2 * M_PI * f1 * tau, r2 = 2 * M_PI * f2 * tau;
-      const double a = 0.5 * half_fov * (std::cos(r1) + std::cos(r2));
-      const double b = 0.5 * half_fov * (std::sin(r1) - std::sin(r2));
-      const double theta = std::hypot(a, b), phi = std::atan2(b, a);
-      const Vec3 dir_lidar(std::cos(theta), std::sin(theta) * std::cos(phi),
-                           std::sin(theta) * std::sin(phi));
+      const Vec3 dir_lidar = RosetteDirection(scan_start_s + t_s, half_fov);
       const SE3 world_from_lidar =
           trajectory_.Pose(scan_start_ns + SecondsToNs(t_s)) * lidar_.imu_from_lidar;
       const Vec3 dir_world = world_from_lidar.rotation() * dir_lidar;
