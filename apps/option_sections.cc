@@ -575,7 +575,7 @@ void AddCameraErrorOptions(OptionManager* options, sim::CameraErrorOptions* erro
   options->AddDouble("CameraErrors.light_level_ratio",
                      &errors->light_level_ratio,
                      "ratio of the brightest to the darkest area's light level (about "
-                     "50-500 lux on an indoor site; HILTI 2022: lighting changes are "
+                     "50-500 lux on an indoor site; HILTI 2022 FL2BIPS-GTSFM report: lighting changes are "
                      "frequent; 1 = uniform)",
                      R::AtLeast(1));
   options->AddDouble("CameraErrors.light_cell_m",
@@ -596,7 +596,7 @@ void AddMaterialOptions(OptionManager* options, sim::MaterialOptions* materials)
   options->AddDouble("Materials.texture_poor_fraction",
                      &materials->texture_poor_fraction,
                      "fraction of wall and ceiling surfaces that are plain painted plaster or "
-                     "bare concrete (HILTI 2022: \"texture-less appearance (such as wall, "
+                     "bare concrete (HILTI 2022 FL2BIPS-GTSFM report: \"texture-less appearance (such as wall, "
                      "roof) [is] frequent in construction sites\")",
                      R::Between(0, 1));
 }
