@@ -259,64 +259,6 @@ cv::Mat CameraRenderer::Render(const SE3& world_from_cam,
     }
   });
 
-  // Motion blur: the pixel's image motion over the exposure, from the hit
-  // point X = s ray in the middle camera frame moved to the start and end
-  // camera frames: dX / s = (R_em - R_sm) ray + (t_em - t_sm) / s.
-  std::vector<float> blurred;
-  const std::vector<float>* exposed = &radiance;
-  if (e.motion_blur && !jacobians_.empty() && exposure.setting.exposure_s > 0) {
-    const SE3 end_from_mid = exposure.world_from_cam_end.Inverse() * world_from_cam;
-    const SE3 start_from_mid = exposure.world_from_cam_start.Inverse() * world_from_cam;
-    const Eigen::Matrix3f d_rot =
-        (end_from_mid.RotationMatrix() - start_from_mid.RotationMatrix()).cast<float>();
-    const Eigen::Vector3f d_trans =
-        (end_from_mid.translation() - start_from_mid.translation()).cast<float>();
-    blurred.resize(radiance.size());
-    auto sample = [&](float x, float y, int c) {
-      x = std::min(std::max(x, 0.f), static_cast<float>(w - 1));
-      y = std::min(std::max(y, 0.f), static_cast<float>(h - 1));
-      const int ix = std::min(static_cast<int>(x), w - 2), iy = std::min(static_cast<int>(y), h - 2);
-      const float fx = x - ix, fy = y - iy;
-      const float* row0 = radiance.data() + (static_cast<size_t>(iy) * w + ix) * channels + c;
-      const float* row1 = row0 + static_cast<size_t>(w) * channels;
-      const float a = row0[0] + (row0[channels] - row0[0]) * fx;
-      const float b = row1[0] + (row1[channels] - row1[0]) * fx;
-      return a + (b - a) * fy;
-    };
-    tbb::parallel_for(0, h, [&](int y) {
-      for (int x = 0; x < w; ++x) {
-        const size_t index = static_cast<size_t>(y) * w + x;
-        const float s = distance[index];
-        Eigen::Vector2f motion = Eigen::Vector2f::Zero();
-        if (s > 0) {
-          const Eigen::Vector3f ray = rays_[index * samples_];
-          const size_t block = static_cast<size_t>(y / kJacobianBlock) *
-                                   ((w + kJacobianBlock - 1) / kJacobianBlock) +
-                               x / kJacobianBlock;
-          motion = jacobians_[block] * (d_rot * ray + d_trans / s);
-        }
-        const float length = motion.norm();
-        if (!(length >= 0.5f)) {  // under half a pixel (or not finite): sharp
-          for (int c = 0; c < channels; ++c) {
-            blurred[index * channels + c] = radiance[index * channels + c];
-          }
-          continue;
-        }
-        // Midpoint rule over the motion segment, samples < 1 px apart.
-        const int n = std::min(64, static_cast<int>(std::ceil(length)) + 1);
-        for (int c = 0; c < channels; ++c) {
-          float acc = 0;
-          for (int k = 0; k < n; ++k) {
-            const float a = (static_cast<float>(k) + 0.5f) / n - 0.5f;
-            acc += sample(x + a * motion.x(), y + a * motion.y(), c);
-          }
-          blurred[index * channels + c] = acc / n;
-        }
-      }
-    });
-    exposed = &blurred;
-  }
-
   // Exposure and sensor noise, in DN.
   const double product = exposure.setting.exposure_s * exposure.setting.gain;
   const float to_dn = static_cast<float>(256.0 / e.reference_exposure_s() * product);
@@ -326,17 +268,70 @@ cv::Mat CameraRenderer::Render(const SE3& world_from_cam,
   const float read2 = read * read;
   const float noise_scale = static_cast<float>(options_.noise_scale);
   const uint64_t noise_key = Mix64(noise_seed * 0x9E3779B97F4A7C15ULL + 0x2545F4914F6CDD1DULL);
+
+  // Motion blur: the pixel's image motion over the exposure, from the hit
+  // point X = s ray in the middle camera frame moved to the start and end
+  // camera frames: dX / s = (R_em - R_sm) ray + (t_em - t_sm) / s.
+  const bool blur = e.motion_blur && !jacobians_.empty() && exposure.setting.exposure_s > 0;
+  const SE3 end_from_mid = exposure.world_from_cam_end.Inverse() * world_from_cam;
+  const SE3 start_from_mid = exposure.world_from_cam_start.Inverse() * world_from_cam;
+  const Eigen::Matrix3f d_rot =
+      (end_from_mid.RotationMatrix() - start_from_mid.RotationMatrix()).cast<float>();
+  const Eigen::Vector3f d_trans =
+      (end_from_mid.translation() - start_from_mid.translation()).cast<float>();
+  const int blocks_per_row = (w + kJacobianBlock - 1) / kJacobianBlock;
+  // Bilinear radiance of channel c at (x, y) in [0, w - 1) x [0, h - 1).
+  auto sample = [&](float x, float y, int c) {
+    const int ix = static_cast<int>(x), iy = static_cast<int>(y);
+    const float fx = x - ix, fy = y - iy;
+    const float* row0 = radiance.data() + (static_cast<size_t>(iy) * w + ix) * channels + c;
+    const float* row1 = row0 + static_cast<size_t>(w) * channels;
+    const float a = row0[0] + (row0[channels] - row0[0]) * fx;
+    const float b = row1[0] + (row1[channels] - row1[0]) * fx;
+    return a + (b - a) * fy;
+  };
+  const float x_max = std::nextafter(static_cast<float>(w - 1), 0.f);
+  const float y_max = std::nextafter(static_cast<float>(h - 1), 0.f);
   cv::Mat image(h, w, color ? CV_8UC3 : CV_8UC1);
   tbb::parallel_for(0, h, [&](int y) {
     uint8_t* row = image.ptr<uint8_t>(y);
-    for (int x = 0; x < w * channels; ++x) {
-      const size_t index = static_cast<size_t>(y) * w * channels + x;
-      float v = to_dn * (*exposed)[index];
-      if (noise_scale > 0) {
-        const float sigma = std::sqrt(shot * v + read2);
-        v += noise_scale * sigma * HashGaussian(Mix64(noise_key + index));
+    for (int x = 0; x < w; ++x) {
+      const size_t index = static_cast<size_t>(y) * w + x;
+      float value[3];
+      for (int c = 0; c < channels; ++c) value[c] = radiance[index * channels + c];
+      const float s = distance[index];
+      if (blur && s > 0) {
+        const Eigen::Vector3f ray = rays_[index * samples_];
+        const size_t block =
+            static_cast<size_t>(y / kJacobianBlock) * blocks_per_row + x / kJacobianBlock;
+        const Eigen::Vector2f motion = jacobians_[block] * (d_rot * ray + d_trans / s);
+        const float length = motion.norm();
+        if (length >= 0.5f) {  // under half a pixel (or not finite): sharp
+          // Midpoint rule over the motion segment, samples < 1 px apart.
+          const int n = std::min(64, static_cast<int>(std::ceil(length)) + 1);
+          // The samples clamped to the image (a segment leaving the image
+          // repeats its border).
+          float sx[64], sy[64];
+          for (int k = 0; k < n; ++k) {
+            const float a = (static_cast<float>(k) + 0.5f) / n - 0.5f;
+            sx[k] = std::min(std::max(x + a * motion.x(), 0.f), x_max);
+            sy[k] = std::min(std::max(y + a * motion.y(), 0.f), y_max);
+          }
+          for (int c = 0; c < channels; ++c) {
+            float acc = 0;
+            for (int k = 0; k < n; ++k) acc += sample(sx[k], sy[k], c);
+            value[c] = acc / n;
+          }
+        }
       }
-      row[x] = cv::saturate_cast<uint8_t>(v);
+      for (int c = 0; c < channels; ++c) {
+        float v = to_dn * value[c];
+        if (noise_scale > 0) {
+          const float sigma = std::sqrt(shot * v + read2);
+          v += noise_scale * sigma * HashGaussian(Mix64(noise_key + index * channels + c));
+        }
+        row[x * channels + c] = cv::saturate_cast<uint8_t>(v);
+      }
     }
   });
   return image;
