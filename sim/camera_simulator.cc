@@ -307,8 +307,8 @@ cv::Mat CameraRenderer::Render(const SE3& world_from_cam,
         const Eigen::Vector2f motion = jacobians_[block] * (d_rot * ray + d_trans / s);
         const float length = motion.norm();
         if (length >= 0.5f) {  // under half a pixel (or not finite): sharp
-          // Midpoint rule over the motion segment, samples < 1 px apart.
-          const int n = std::min(64, static_cast<int>(std::ceil(length)) + 1);
+          // Midpoint rule over the motion segment, samples <= 1 px apart.
+          const int n = std::min(64, std::max(2, static_cast<int>(std::ceil(length))));
           // The samples clamped to the image (a segment leaving the image
           // repeats its border).
           float sx[64], sy[64];
