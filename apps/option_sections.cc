@@ -538,10 +538,16 @@ void AddSimulatorOptions(OptionManager* options, sim::SimulatorOptions* sim) {
                      "error sources beyond white noise and bias random walk, each sized by "
                      "its section: calibration (true extrinsics and time offsets differ from "
                      "rig.yaml; truth/rig.yaml), imu (scale factor, misalignment, "
-                     "temperature bias drift; truth/imu_errors.yaml); a comma list, all, or "
-                     "none (the clean recording)");
+                     "temperature bias drift; truth/imu_errors.yaml), lidar (incidence "
+                     "noise, mixed pixels, material intensity, dropouts, maximum range), "
+                     "camera (auto exposure and gain, sensor noise, motion blur, "
+                     "lighting); a comma list, all, or none (the clean recording; "
+                     "--noise_scale 0 turns all off)");
   AddCalibrationErrorOptions(options, &sim->calibration_error);
   AddImuErrorOptions(options, &sim->imu_error);
+  AddLidarErrorOptions(options, &sim->lidar_errors);
+  AddCameraErrorOptions(options, &sim->camera_errors);
+  AddMaterialOptions(options, &sim->materials);
   options->AddStructCheck([sim] { return sim->Check(); });
 }
 
@@ -632,6 +638,121 @@ void AddImuErrorOptions(OptionManager* options, sim::ImuErrorOptions* imu) {
                      "(1 + l/tau) exp(-l/tau))",
                      R::Between(1, 1e5));
   options->AddStructCheck([imu] { return imu->Check(); });
+}
+
+void AddLidarErrorOptions(OptionManager* options, sim::LidarErrorOptions* errors) {
+  options->AddDouble("LidarErrors.incidence_noise_gain",
+                     &errors->incidence_noise_gain,
+                     "range noise sigma grows as 1 + g (1/cos(incidence) - 1), 1/cos capped "
+                     "at 10 (1: proportional to the footprint stretch 1/cos, Soudarissanane "
+                     "et al., ISPRS J. 2011; base sigma XT-32 datasheet +-1 cm; 0 = off)",
+                     R::AtLeast(0));
+  options->AddDouble("LidarErrors.beam_divergence_mrad",
+                     &errors->beam_divergence_mrad,
+                     "full beam divergence of the mixed-pixel model, mrad (the XT-32 datasheet "
+                     "does not give it; Ouster OS0 datasheet: 0.18 deg = 3.1 mrad FWHM; "
+                     "0 = no mixed pixels)",
+                     R::AtLeast(0));
+  options->AddDouble("LidarErrors.mixed_pixel_max_separation_m",
+                     &errors->mixed_pixel_max_separation_m,
+                     "echoes of one beam closer than this merge into a point between the "
+                     "surfaces, m (about the pulse length c*tau/2 of a few-ns pulse)",
+                     R::AtLeast(0));
+  options->AddBool("LidarErrors.material_intensity",
+                   &errors->material_intensity,
+                   "intensity = 100 x apparent reflectivity of the material (Hesai "
+                   "reflectivity scale; 0: from the texture albedo)");
+  options->AddDouble("LidarErrors.range_at_10_percent_m",
+                     &errors->range_at_10_percent_m,
+                     "maximum range of a 10 % diffuse target at normal incidence, m; at "
+                     "apparent reflectivity rho it is this x sqrt(rho / 0.1) (XT-32 datasheet: "
+                     "80 m at 10 %; 0 = off)",
+                     R::AtLeast(0));
+  options->AddDouble("LidarErrors.dropout_reflectivity",
+                     &errors->dropout_reflectivity,
+                     "apparent reflectivity at which half of the pulses return nothing "
+                     "(dark and glossy surfaces, grazing incidence; 0 = no dropouts)",
+                     R::Between(0, 1));
+}
+
+void AddCameraErrorOptions(OptionManager* options, sim::CameraErrorOptions* errors) {
+  options->AddBool("CameraErrors.auto_exposure",
+                   &errors->auto_exposure,
+                   "auto exposure and gain follow the scene brightness (0: fixed "
+                   "reference_exposure_ms at gain 1)");
+  options->AddDouble("CameraErrors.ae_target_median_dn",
+                     &errors->ae_target_median_dn,
+                     "auto-exposure target of the image median, DN (Alphasense "
+                     "autoexp_target_median default 70)",
+                     R::GreaterThan(0).AndLessThan(255));
+  options->AddDouble("CameraErrors.ae_time_constant_s",
+                     &errors->ae_time_constant_s,
+                     "time constant of the exposure's lag behind the brightness, s",
+                     R::AtLeast(0));
+  options->AddDouble("CameraErrors.ae_rate_hz",
+                     &errors->ae_rate_hz,
+                     "auto-exposure updates per second (the camera's own frame rate)",
+                     R::GreaterThan(0));
+  options->AddDouble("CameraErrors.min_exposure_ms",
+                     &errors->min_exposure_ms,
+                     "shortest exposure, ms (Alphasense min_exp_time_us default 50)",
+                     R::GreaterThan(0));
+  options->AddDouble("CameraErrors.max_exposure_ms",
+                     &errors->max_exposure_ms,
+                     "longest exposure before the gain rises, ms, >= min_exposure_ms "
+                     "(Alphasense max_exp_time_us default 10000)");
+  options->AddDouble("CameraErrors.max_gain",
+                     &errors->max_gain,
+                     "highest analog gain (Alphasense: gain 255 = x5.6 sensitivity)",
+                     R::AtLeast(1));
+  options->AddDouble("CameraErrors.reference_exposure_ms",
+                     &errors->reference_exposure_ms,
+                     "exposure at gain 1 that renders radiance 0.5 (albedo x shading x "
+                     "light) at 128 DN, ms: the scene's brightness",
+                     R::GreaterThan(0));
+  options->AddBool("CameraErrors.shot_noise",
+                   &errors->shot_noise,
+                   "Poisson noise of the collected electrons");
+  options->AddDouble("CameraErrors.full_well_e",
+                     &errors->full_well_e,
+                     "electrons at 255 DN and gain 1 (Sony IMX287, the Alphasense Core "
+                     "0.4 MP sensor: about 22 ke- saturation in EMVA 1288 sheets)",
+                     R::GreaterThan(0));
+  options->AddDouble("CameraErrors.read_noise_e",
+                     &errors->read_noise_e,
+                     "temporal dark noise, electrons (IMX287 EMVA 1288 sheets: about 7 e-; "
+                     "0 = off)",
+                     R::AtLeast(0));
+  options->AddBool("CameraErrors.motion_blur",
+                   &errors->motion_blur,
+                   "blur along each pixel's image motion during the exposure");
+  options->AddDouble("CameraErrors.light_level_ratio",
+                     &errors->light_level_ratio,
+                     "ratio of the brightest to the darkest area's light level (about "
+                     "50-500 lux on an indoor site; HILTI 2022 FL2BIPS-GTSFM report: "
+                     "lighting changes are frequent; 1 = uniform)",
+                     R::AtLeast(1));
+  options->AddDouble("CameraErrors.light_cell_m",
+                     &errors->light_cell_m,
+                     "spacing of the light-level lattice (about a room), m",
+                     R::GreaterThan(0));
+  options->AddDouble("CameraErrors.light_change_amplitude",
+                     &errors->light_change_amplitude,
+                     "relative slow change of each area's light over time (0 = off)",
+                     R::AtLeast(0).AndLessThan(1));
+  options->AddDouble("CameraErrors.light_change_period_s",
+                     &errors->light_change_period_s,
+                     "period of that change, s",
+                     R::GreaterThan(0));
+}
+
+void AddMaterialOptions(OptionManager* options, sim::MaterialOptions* materials) {
+  options->AddDouble("Materials.texture_poor_fraction",
+                     &materials->texture_poor_fraction,
+                     "fraction of wall and ceiling surfaces that are plain painted plaster or "
+                     "bare concrete (HILTI 2022 FL2BIPS-GTSFM report: \"texture-less "
+                     "appearance (such as wall, roof) [is] frequent in construction sites\")",
+                     R::Between(0, 1));
 }
 
 void AddGlobalMapperOptions(OptionManager* options,

@@ -60,12 +60,19 @@ void AddSfmEvaluationOptions(OptionManager* options,
                              colmap::SfmEvaluationOptions* eval);
 
 // No section (lisfm simulate); `output_path` is required. Also registers the
-// error source sizes: CalibrationError.* and ImuError.*.
+// error source sizes and materials for sim's members: CalibrationError.*,
+// ImuError.*, LidarErrors.*, CameraErrors.* and Materials.* (below).
 void AddSimulatorOptions(OptionManager* options, sim::SimulatorOptions* sim);
 // CalibrationError.*: the `calibration` error source of lisfm simulate.
 void AddCalibrationErrorOptions(OptionManager* options, sim::CalibrationErrorOptions* calibration);
 // ImuError.*: the `imu` error source of lisfm simulate.
 void AddImuErrorOptions(OptionManager* options, sim::ImuErrorOptions* imu);
+// LidarErrors.*: the `lidar` error source of lisfm simulate.
+void AddLidarErrorOptions(OptionManager* options, sim::LidarErrorOptions* errors);
+// CameraErrors.*: the `camera` error source of lisfm simulate.
+void AddCameraErrorOptions(OptionManager* options, sim::CameraErrorOptions* errors);
+// Materials.*: surface materials of the simulated scenes.
+void AddMaterialOptions(OptionManager* options, sim::MaterialOptions* materials);
 
 // Mapper.* and the stages: Priors.*, ViewGraph.*, RotationAveraging.*,
 // TranslationAveraging.*, Triangulation.* (tracks and triangulation),

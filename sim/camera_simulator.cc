@@ -1,6 +1,8 @@
 #include "sim/camera_simulator.h"
 
+#include <algorithm>
 #include <cmath>
+#include <vector>
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
@@ -18,14 +20,16 @@ bool CameraSimOptions::Check() const {
   CHECK_OPTION_GE(noise_scale, 0.0);
   CHECK_OPTION_MSG(vignetting, vignetting >= 0 && vignetting <= 1, "in [0, 1]");
   CHECK_OPTION_GT(max_range, 0.0);
+  CHECK_OPTION_NESTED(errors);
   return true;
 }
 
 CameraRenderer::CameraRenderer(const Scene& scene,
                                const CameraModel& model,
                                const TextureOptions& texture,
-                               const CameraSimOptions& options)
-    : scene_(scene), model_(model), texture_(texture), options_(options) {
+                               const CameraSimOptions& options,
+                               const SceneLighting* lighting)
+    : scene_(scene), model_(model), texture_(texture), options_(options), lighting_(lighting) {
   THROW_CHECK_OPTIONS(options_);
   THROW_CHECK_GT(model_.width, 0);
   THROW_CHECK_GT(model_.height, 0);
@@ -50,6 +54,33 @@ CameraRenderer::CameraRenderer(const Scene& scene,
           static_cast<float>(1.0 - options_.vignetting * r * r);
     }
   });
+  if (options_.errors_enabled && options_.errors.motion_blur) {
+    // Central differences of the projection around the unit ray of each
+    // block's centre (step 1e-4: the truncation error is ~1e-8 of the
+    // Jacobian; across a block the Jacobian changes by ~1 %).
+    const int gw = (w + kJacobianBlock - 1) / kJacobianBlock;
+    const int gh = (h + kJacobianBlock - 1) / kJacobianBlock;
+    jacobians_.resize(static_cast<size_t>(gw) * gh);
+    constexpr double kStep = 1e-4;
+    tbb::parallel_for(0, gh, [&](int by) {
+      for (int bx = 0; bx < gw; ++bx) {
+        const Vec2 centre(std::min(bx * kJacobianBlock + 0.5 * (kJacobianBlock - 1), w - 1.0),
+                          std::min(by * kJacobianBlock + 0.5 * (kJacobianBlock - 1), h - 1.0));
+        const Vec3 d = model_.Unproject(centre);
+        Eigen::Matrix<float, 2, 3>& jac = jacobians_[static_cast<size_t>(by) * gw + bx];
+        jac.setZero();
+        for (int a = 0; a < 3; ++a) {
+          Vec2 plus, minus;
+          if (!model_.Project(d + kStep * Vec3::Unit(a), &plus, false) ||
+              !model_.Project(d - kStep * Vec3::Unit(a), &minus, false)) {
+            jac.setZero();
+            break;
+          }
+          jac.col(a) = ((plus - minus) / (2 * kStep)).cast<float>();
+        }
+      }
+    });
+  }
 }
 
 namespace {
@@ -149,6 +180,203 @@ cv::Mat CameraRenderer::Render(const SE3& world_from_cam, uint64_t noise_seed) c
     }
   });
   return image;
+}
+
+cv::Mat CameraRenderer::Render(const SE3& world_from_cam,
+                               const CameraExposure& exposure,
+                               uint64_t noise_seed) const {
+  THROW_CHECK(options_.errors_enabled);
+  const CameraErrorOptions& e = options_.errors;
+  const int w = model_.width, h = model_.height;
+  const bool color = options_.color;
+  const int channels = color ? 3 : 1;
+  const LightField light = lighting_ != nullptr ? lighting_->At(exposure.time_s) : LightField();
+  const Eigen::Matrix3f rot = world_from_cam.RotationMatrix().cast<float>();
+  const Eigen::Vector3f origin = world_from_cam.translation().cast<float>();
+  const float origin_arr[3] = {origin.x(), origin.y(), origin.z()};
+  const Eigen::Vector3f sun = Eigen::Vector3f(0.3f, 0.5f, 0.81f).normalized();
+  const float max_range = static_cast<float>(options_.max_range);
+  const size_t num_pixels = static_cast<size_t>(w) * h;
+  // Radiance (before the exposure) per pixel and channel, and the hit
+  // distance of each pixel's first ray (0: no hit).
+  std::vector<float> radiance(num_pixels * channels, 0.f), distance(num_pixels, 0.f);
+  constexpr int kBlock = 4;
+  const int block_rows = (h + kBlock - 1) / kBlock;
+  tbb::parallel_for(tbb::blocked_range<int>(0, block_rows, 2), [&](const tbb::blocked_range<int>& r) {
+    for (int by = r.begin(); by != r.end(); ++by) {
+      const int y0 = by * kBlock;
+      for (int x0 = 0; x0 < w; x0 += kBlock) {
+        int pixel_x[16], pixel_y[16], valid[16];
+        for (int k = 0; k < 16; ++k) {
+          pixel_x[k] = x0 + (k & 3);
+          pixel_y[k] = y0 + (k >> 2);
+          valid[k] = pixel_x[k] < w && pixel_y[k] < h;
+        }
+        Eigen::Vector3f sum[16];
+        for (int k = 0; k < 16; ++k) sum[k].setZero();
+        for (int s = 0; s < samples_; ++s) {
+          float dirs[16][3];
+          for (int k = 0; k < 16; ++k) {
+            const Eigen::Vector3f d =
+                valid[k] ? Eigen::Vector3f(
+                               rot * rays_[(static_cast<size_t>(pixel_y[k]) * w + pixel_x[k]) *
+                                               samples_ + s])
+                         : Eigen::Vector3f::UnitZ();
+            dirs[k][0] = d.x();
+            dirs[k][1] = d.y();
+            dirs[k][2] = d.z();
+          }
+          RayHit hits[16];
+          scene_.Intersect16(valid, origin_arr, dirs, max_range, /*coherent=*/true, hits);
+          for (int k = 0; k < 16; ++k) {
+            if (!valid[k] || !hits[k].hit) continue;
+            const Eigen::Vector3f p =
+                origin + hits[k].distance * Eigen::Vector3f(dirs[k][0], dirs[k][1], dirs[k][2]);
+            const float albedo = MaterialAlbedo(
+                scene_.material(hits[k].surface_id),
+                texture_.Albedo(hits[k].surface_id, p, TextureAxis(hits[k].normal)));
+            const float shade = 0.55f + 0.45f * std::fabs(hits[k].normal.dot(sun));
+            const float value = albedo * shade * light.Level(p);
+            if (color) {
+              sum[k] += value * texture_.Tint(hits[k].surface_id);
+            } else {
+              sum[k].x() += value;
+            }
+            if (s == 0) {
+              distance[static_cast<size_t>(pixel_y[k]) * w + pixel_x[k]] = hits[k].distance;
+            }
+          }
+        }
+        for (int k = 0; k < 16; ++k) {
+          if (!valid[k]) continue;
+          const size_t index = static_cast<size_t>(pixel_y[k]) * w + pixel_x[k];
+          const float scale = vignette_[index] / samples_;
+          for (int c = 0; c < channels; ++c) {
+            radiance[index * channels + c] = sum[k][color ? 2 - c : 0] * scale;  // BGR
+          }
+        }
+      }
+    }
+  });
+
+  // Exposure and sensor noise, in DN.
+  const double product = exposure.setting.exposure_s * exposure.setting.gain;
+  const float to_dn = static_cast<float>(256.0 / e.reference_exposure_s() * product);
+  const float k_gain = static_cast<float>(255.0 / e.full_well_e * exposure.setting.gain);
+  const float shot = e.shot_noise ? k_gain : 0.f;
+  const float read = k_gain * static_cast<float>(e.read_noise_e);
+  const float read2 = read * read;
+  const float noise_scale = static_cast<float>(options_.noise_scale);
+  const uint64_t noise_key = Mix64(noise_seed * 0x9E3779B97F4A7C15ULL + 0x2545F4914F6CDD1DULL);
+
+  // Motion blur: the pixel's image motion over the exposure, from the hit
+  // point X = s ray in the middle camera frame moved to the start and end
+  // camera frames: dX / s = (R_em - R_sm) ray + (t_em - t_sm) / s.
+  const bool blur = e.motion_blur && !jacobians_.empty() && exposure.setting.exposure_s > 0;
+  const SE3 end_from_mid = exposure.world_from_cam_end.Inverse() * world_from_cam;
+  const SE3 start_from_mid = exposure.world_from_cam_start.Inverse() * world_from_cam;
+  const Eigen::Matrix3f d_rot =
+      (end_from_mid.RotationMatrix() - start_from_mid.RotationMatrix()).cast<float>();
+  const Eigen::Vector3f d_trans =
+      (end_from_mid.translation() - start_from_mid.translation()).cast<float>();
+  const int blocks_per_row = (w + kJacobianBlock - 1) / kJacobianBlock;
+  // Bilinear radiance of channel c at (x, y) in [0, w - 1) x [0, h - 1).
+  auto sample = [&](float x, float y, int c) {
+    const int ix = static_cast<int>(x), iy = static_cast<int>(y);
+    const float fx = x - ix, fy = y - iy;
+    const float* row0 = radiance.data() + (static_cast<size_t>(iy) * w + ix) * channels + c;
+    const float* row1 = row0 + static_cast<size_t>(w) * channels;
+    const float a = row0[0] + (row0[channels] - row0[0]) * fx;
+    const float b = row1[0] + (row1[channels] - row1[0]) * fx;
+    return a + (b - a) * fy;
+  };
+  const float x_max = std::nextafter(static_cast<float>(w - 1), 0.f);
+  const float y_max = std::nextafter(static_cast<float>(h - 1), 0.f);
+  cv::Mat image(h, w, color ? CV_8UC3 : CV_8UC1);
+  tbb::parallel_for(0, h, [&](int y) {
+    uint8_t* row = image.ptr<uint8_t>(y);
+    for (int x = 0; x < w; ++x) {
+      const size_t index = static_cast<size_t>(y) * w + x;
+      float value[3];
+      for (int c = 0; c < channels; ++c) value[c] = radiance[index * channels + c];
+      const float s = distance[index];
+      if (blur && s > 0) {
+        const Eigen::Vector3f ray = rays_[index * samples_];
+        const size_t block =
+            static_cast<size_t>(y / kJacobianBlock) * blocks_per_row + x / kJacobianBlock;
+        const Eigen::Vector2f motion = jacobians_[block] * (d_rot * ray + d_trans / s);
+        const float length = motion.norm();
+        if (length >= 0.5f) {  // under half a pixel (or not finite): sharp
+          // Midpoint rule over the motion segment, samples <= 1 px apart.
+          const int n = std::min(64, std::max(2, static_cast<int>(std::ceil(length))));
+          // The samples clamped to the image (a segment leaving the image
+          // repeats its border).
+          float sx[64], sy[64];
+          for (int k = 0; k < n; ++k) {
+            const float a = (static_cast<float>(k) + 0.5f) / n - 0.5f;
+            sx[k] = std::min(std::max(x + a * motion.x(), 0.f), x_max);
+            sy[k] = std::min(std::max(y + a * motion.y(), 0.f), y_max);
+          }
+          for (int c = 0; c < channels; ++c) {
+            float acc = 0;
+            for (int k = 0; k < n; ++k) acc += sample(sx[k], sy[k], c);
+            value[c] = acc / n;
+          }
+        }
+      }
+      for (int c = 0; c < channels; ++c) {
+        float v = to_dn * value[c];
+        if (noise_scale > 0) {
+          const float sigma = std::sqrt(shot * v + read2);
+          v += noise_scale * sigma * HashGaussian(Mix64(noise_key + index * channels + c));
+        }
+        row[x * channels + c] = cv::saturate_cast<uint8_t>(v);
+      }
+    }
+  });
+  return image;
+}
+
+double CameraRenderer::MeterRadiance(const SE3& world_from_cam, double time_s) const {
+  constexpr int kStride = 32;
+  const int w = model_.width, h = model_.height;
+  const LightField light = lighting_ != nullptr ? lighting_->At(time_s) : LightField();
+  const Eigen::Matrix3f rot = world_from_cam.RotationMatrix().cast<float>();
+  const Eigen::Vector3f origin = world_from_cam.translation().cast<float>();
+  const float origin_arr[3] = {origin.x(), origin.y(), origin.z()};
+  const Eigen::Vector3f sun = Eigen::Vector3f(0.3f, 0.5f, 0.81f).normalized();
+  std::vector<size_t> pixels;
+  for (int y = kStride / 2; y < h; y += kStride) {
+    for (int x = kStride / 2; x < w; x += kStride) pixels.push_back(static_cast<size_t>(y) * w + x);
+  }
+  std::vector<float> values(pixels.size(), 0.f);
+  for (size_t i0 = 0; i0 < pixels.size(); i0 += 16) {
+    int valid[16];
+    float dirs[16][3];
+    for (int k = 0; k < 16; ++k) {
+      valid[k] = i0 + k < pixels.size();
+      const Eigen::Vector3f d =
+          valid[k] ? Eigen::Vector3f(rot * rays_[pixels[i0 + k] * samples_]) : Eigen::Vector3f::UnitZ();
+      dirs[k][0] = d.x();
+      dirs[k][1] = d.y();
+      dirs[k][2] = d.z();
+    }
+    RayHit hits[16];
+    scene_.Intersect16(valid, origin_arr, dirs, static_cast<float>(options_.max_range),
+                       /*coherent=*/false, hits);
+    for (int k = 0; k < 16; ++k) {
+      if (!valid[k] || !hits[k].hit) continue;
+      const Eigen::Vector3f p =
+          origin + hits[k].distance * Eigen::Vector3f(dirs[k][0], dirs[k][1], dirs[k][2]);
+      const float albedo = MaterialAlbedo(
+          scene_.material(hits[k].surface_id),
+          texture_.Albedo(hits[k].surface_id, p, TextureAxis(hits[k].normal)));
+      const float shade = 0.55f + 0.45f * std::fabs(hits[k].normal.dot(sun));
+      values[i0 + k] = albedo * shade * light.Level(p) * vignette_[pixels[i0 + k]];
+    }
+  }
+  std::nth_element(values.begin(), values.begin() + values.size() / 2, values.end());
+  return values[values.size() / 2];
 }
 
 cv::Mat CameraRenderer::RenderDepth(const SE3& world_from_cam) const {

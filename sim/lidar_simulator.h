@@ -21,6 +21,36 @@
 // albedo averaged over the beam footprint (Texture::FootprintAlbedo) and the
 // incidence angle.
 //
+// Error sources (LidarSimOptions::errors_enabled, LidarErrorOptions; the
+// surfaces' materials come from Scene::material, sim/materials.h). For a beam
+// hitting material (rho_d, rho_s) at incidence theta, with texture modulation
+// m (MaterialAlbedo / albedo at the footprint's texture albedo):
+// - apparent reflectivity rho = rho_d m cos(theta) + rho_s cos(theta)^20;
+// - intensity = min(255, 100 rho) (the Hesai reflectivity scale: 0-100 is the
+//   diffuse reflectivity in %);
+// - maximum range R10 sqrt(rho / 0.1): a 10 % target is seen to R10
+//   (range_at_10_percent_m, XT-32 datasheet 80 m), the received power falls
+//   with range squared;
+// - dropout probability 1 - (1 - p_m) (1 - 1 / (1 + (rho / rho_half)^2)),
+//   p_m the material's own dropout (glass), rho_half = dropout_reflectivity;
+// - range noise sigma = range_sigma noise_scale (1 + g (1 / cos(theta) - 1)),
+//   1 / cos capped at 10 (g = incidence_noise_gain; range noise of a laser
+//   footprint stretched by 1 / cos on an inclined surface, Soudarissanane et
+//   al., ISPRS J. 2011);
+// - mixed pixels: a beam of full divergence d (uniform profile) whose
+//   neighbour (next column or ring; for the Livox the previous / next firing)
+//   hits a point off the beam's own surface plane (> 2 cm: a depth edge or a
+//   corner) straddles an edge placed uniformly at random in the angular gap
+//   between the two beams (one draw per gap, shared by both beams). A fraction
+//   f = clamp(1/2 - distance to the edge / d, 0, 1) of the footprint then lies
+//   on the neighbour's surface. Echoes within mixed_pixel_max_separation_m of
+//   the strongest echo (power f rho / r^2) merge into one return at their
+//   power-weighted mean range, with reflectivity sum f rho: a point between
+//   the two surfaces; a farther echo is lost. Only the azimuth / elevation
+//   neighbours are modelled (a 1D footprint per direction).
+// The random draws are counter-based hashes of (seed, scan, beam), so a scan
+// is the same for any thread schedule.
+//
 // Thread safety: SimulateScan() is const and may run concurrently.
 #pragma once
 
@@ -35,6 +65,25 @@
 namespace lisfm {
 namespace sim {
 
+// The LiDAR error sources (model above); each is off at its "off" value.
+struct LidarErrorOptions {
+  // g: the range noise grows as 1 + g (1 / cos(theta) - 1); 0 = off.
+  double incidence_noise_gain = 1.0;
+  // Full beam divergence (mrad) of the mixed-pixel model; 0 = off.
+  double beam_divergence_mrad = 3.0;
+  // Echoes closer than this (m) merge into one return between the surfaces.
+  double mixed_pixel_max_separation_m = 1.0;
+  // Intensity from the material's apparent reflectivity; 0 = from the albedo
+  // as without error sources.
+  bool material_intensity = true;
+  // R10 (m): the range up to which a 10 % diffuse target is detected; 0 = off.
+  double range_at_10_percent_m = 80.0;
+  // rho_half: the apparent reflectivity at which half of the pulses return
+  // nothing; 0 = no dropouts (also none from the materials' own dropout).
+  double dropout_reflectivity = 0.01;
+  bool Check() const;
+};
+
 struct LidarSimOptions {
   double noise_scale = 1.0;     // 0 = exact ranges
   double range_sigma = 0.01;    // m, 1-sigma range noise at noise_scale 1
@@ -42,8 +91,15 @@ struct LidarSimOptions {
   double livox_rate = 100000;   // solid-state: points per second
   double livox_fov_deg = 70.4;  // solid-state: full circular field of view
   uint64_t seed = 1;
+  bool errors_enabled = false;  // apply `errors`
+  LidarErrorOptions errors;
   bool Check() const;
 };
+
+// The apparent reflectivity rho_d m cos(theta) + rho_s cos(theta)^20 of
+// `material` at incidence cos(theta) = `cos_incidence` where the footprint's
+// texture albedo is `texture_albedo` (model above).
+float ApparentReflectivity(const Material& material, float texture_albedo, float cos_incidence);
 
 class LidarSimulator {
  public:
@@ -62,6 +118,8 @@ class LidarSimulator {
   double RingElevation(int ring) const;
 
  private:
+  PointCloud SimulateScanWithErrors(TimestampNs scan_start_ns, int64_t scan_index) const;
+
   const Scene& scene_;
   const SplineTrajectory& trajectory_;
   RigLidar lidar_;

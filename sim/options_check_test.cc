@@ -4,10 +4,12 @@
 
 #include "core/errors.h"
 #include "sim/calibration_errors.h"
+#include "sim/camera_errors.h"
 #include "sim/camera_simulator.h"
 #include "sim/imu_errors.h"
 #include "sim/imu_simulator.h"
 #include "sim/lidar_simulator.h"
+#include "sim/materials.h"
 #include "sim/motion.h"
 #include "sim/scene.h"
 #include "sim/simulator.h"
@@ -43,8 +45,29 @@ TEST(SimOptionsCheck, Simulator) {
           {"calibration_error.lidar_rotation_sigma_deg",
            [](S* o) { o->calibration_error.lidar_rotation_sigma_deg = -0.1; }},
           {"imu_error.temperature_sigma_k", [](S* o) { o->imu_error.temperature_sigma_k = -1.0; }},
+          {"error_sources", [](S* o) { o->error_sources = "lidar,weather"; }},
+          // A source named for a sensor the recording does not have.
+          {"error_sources",
+           [](S* o) {
+             o->error_sources = "lidar";
+             o->lidars = "none";
+           }},
+          {"error_sources",
+           [](S* o) {
+             o->error_sources = "camera";
+             o->camera_rate = 0;
+           }},
+          {"lidar_errors.beam_divergence_mrad",
+           [](S* o) { o->lidar_errors.beam_divergence_mrad = -1; }},
+          {"camera_errors.read_noise_e", [](S* o) { o->camera_errors.read_noise_e = -1; }},
+          {"materials.texture_poor_fraction",
+           [](S* o) { o->materials.texture_poor_fraction = 1.5; }},
       },
       valid);
+  // "all" needs no particular sensor: it applies to the sensors there are.
+  valid.lidars = "none";
+  valid.camera_rate = 0;
+  EXPECT_TRUE(valid.Check()) << LastOptionCheckFailure().ToString();
   valid.trajectory_path = "motion.txt";
   valid.duration = -1.0;  // all of the file
   EXPECT_TRUE(valid.Check());
@@ -58,6 +81,37 @@ TEST(SimOptionsCheck, Sensors) {
       {"azimuth_steps", [](L* o) { o->azimuth_steps = 0; }},
       {"livox_rate", [](L* o) { o->livox_rate = 0.0; }},
       {"livox_fov_deg", [](L* o) { o->livox_fov_deg = 181.0; }},
+      {"errors.incidence_noise_gain", [](L* o) { o->errors.incidence_noise_gain = -0.1; }},
+  });
+  using LE = LidarErrorOptions;
+  ExpectCheckRejects<LE>({
+      {"incidence_noise_gain", [](LE* o) { o->incidence_noise_gain = -1.0; }},
+      {"beam_divergence_mrad", [](LE* o) { o->beam_divergence_mrad = -1.0; }},
+      {"mixed_pixel_max_separation_m", [](LE* o) { o->mixed_pixel_max_separation_m = -1.0; }},
+      {"range_at_10_percent_m", [](LE* o) { o->range_at_10_percent_m = -1.0; }},
+      {"dropout_reflectivity", [](LE* o) { o->dropout_reflectivity = -0.1; }},
+      {"dropout_reflectivity", [](LE* o) { o->dropout_reflectivity = 1.5; }},
+  });
+  using CE = CameraErrorOptions;
+  ExpectCheckRejects<CE>({
+      {"ae_target_median_dn", [](CE* o) { o->ae_target_median_dn = 0.0; }},
+      {"ae_target_median_dn", [](CE* o) { o->ae_target_median_dn = 255.0; }},
+      {"ae_time_constant_s", [](CE* o) { o->ae_time_constant_s = -1.0; }},
+      {"ae_rate_hz", [](CE* o) { o->ae_rate_hz = 0.0; }},
+      {"min_exposure_ms", [](CE* o) { o->min_exposure_ms = 0.0; }},
+      {"max_exposure_ms", [](CE* o) { o->max_exposure_ms = 0.01; }},  // < min_exposure_ms
+      {"max_gain", [](CE* o) { o->max_gain = 0.5; }},
+      {"reference_exposure_ms", [](CE* o) { o->reference_exposure_ms = 0.0; }},
+      {"full_well_e", [](CE* o) { o->full_well_e = 0.0; }},
+      {"read_noise_e", [](CE* o) { o->read_noise_e = -1.0; }},
+      {"light_level_ratio", [](CE* o) { o->light_level_ratio = 0.5; }},
+      {"light_cell_m", [](CE* o) { o->light_cell_m = 0.0; }},
+      {"light_change_amplitude", [](CE* o) { o->light_change_amplitude = 1.0; }},
+      {"light_change_period_s", [](CE* o) { o->light_change_period_s = 0.0; }},
+  });
+  using M = MaterialOptions;
+  ExpectCheckRejects<M>({
+      {"texture_poor_fraction", [](M* o) { o->texture_poor_fraction = -0.1; }},
   });
   using I = ImuSimOptions;
   ExpectCheckRejects<I>({
@@ -75,6 +129,7 @@ TEST(SimOptionsCheck, Sensors) {
       {"noise_scale", [](C* o) { o->noise_scale = -1.0; }},
       {"vignetting", [](C* o) { o->vignetting = 1.5; }},
       {"max_range", [](C* o) { o->max_range = 0.0; }},
+      {"errors.max_gain", [](C* o) { o->errors.max_gain = 0.0; }},
   });
 }
 

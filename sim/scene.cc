@@ -68,6 +68,47 @@ SceneOptions DefaultSceneOptions(const std::string& type) {
                        type + "'");
 }
 
+namespace {
+
+// `materials:` of a scene file: a map from surface class to a list of
+// material names, each list replacing that class's pool.
+void ReadMaterialPools(const std::string& path, const YAML::Node& node, MaterialPools* pools) {
+  if (!node.IsMap()) {
+    throw InputError(path, "field materials",
+                     "expected a map from surface class (floor, ceiling, wall, object) to a "
+                     "list of material names");
+  }
+  for (const auto& kv : node) {
+    const std::string cls = kv.first.as<std::string>();
+    int index = -1;
+    for (int c = 0; c < kNumSurfaceClasses; ++c) {
+      if (cls == SurfaceClassName(static_cast<SurfaceClass>(c))) index = c;
+    }
+    const std::string field = "field materials." + cls;
+    if (index < 0) {
+      throw InputError(path, field,
+                       "unknown surface class; expected floor, ceiling, wall or object");
+    }
+    if (!kv.second.IsSequence() || kv.second.size() == 0) {
+      throw InputError(path, field, "expected a non-empty list of material names");
+    }
+    std::vector<MaterialId> pool;
+    for (const YAML::Node& name_node : kv.second) {
+      if (!name_node.IsScalar()) throw InputError(path, field, "expected material names");
+      const std::string name = name_node.as<std::string>();
+      const std::optional<MaterialId> id = FindMaterial(name);
+      if (!id) {
+        throw InputError(path, field,
+                         "unknown material '" + name + "'; expected one of " + MaterialNames());
+      }
+      pool.push_back(*id);
+    }
+    pools->pool[index] = pool;
+  }
+}
+
+}  // namespace
+
 SceneOptions ReadSceneOptions(const std::string& path) {
   CheckFileExists(path, "scene config");
   YAML::Node root;
@@ -100,6 +141,7 @@ SceneOptions ReadSceneOptions(const std::string& path) {
       else if (key == "pillar_spacing") o.pillar_spacing = kv.second.as<double>();
       else if (key == "car_density") o.car_density = kv.second.as<double>();
       else if (key == "texture_scale") o.texture_scale = kv.second.as<double>();
+      else if (key == "materials") ReadMaterialPools(path, kv.second, &o.materials);
       else throw InputError(path, "field " + key, "unknown scene option");
     } catch (const YAML::Exception& e) {
       throw InputError(path, "field " + key, "expected a number, " + e.msg);
@@ -145,6 +187,17 @@ std::vector<Vec3> Densify(const std::vector<Vec3>& points, bool closed) {
   }
   if (!closed && n > 0) out.push_back(points.back());
   return out;
+}
+
+// The class of face `face` (the kFaces order of Builder::Triangles: -x, +x,
+// -y, +y, -z, +z) of `box`: large upward faces are floors, large downward
+// faces ceilings, vertical faces of at least 1.8 m walls (thresholds in
+// materials.h SurfaceClass).
+SurfaceClass ClassifyFace(const Box& box, int face) {
+  const Vec3 e = box.max() - box.min();
+  if (face == 5) return e.x() * e.y() >= 2.0 ? SurfaceClass::kFloor : SurfaceClass::kObject;
+  if (face == 4) return e.x() * e.y() >= 4.0 ? SurfaceClass::kCeiling : SurfaceClass::kObject;
+  return e.z() >= 1.8 ? SurfaceClass::kWall : SurfaceClass::kObject;
 }
 
 class Builder {
@@ -221,11 +274,14 @@ class Builder {
     parts_ = std::move(kept);
   }
 
-  // Six faces of every box, two triangles each, one surface id per face.
-  std::vector<Triangle> Triangles(int* num_surfaces) const {
+  // Six faces of every box, two triangles each, one surface id per face;
+  // `classes` gets each face's SurfaceClass (ClassifyFace).
+  std::vector<Triangle> Triangles(int* num_surfaces, std::vector<SurfaceClass>* classes) const {
     std::vector<Triangle> tris;
+    classes->clear();
     uint32_t id = 0;
     for (const Part& part : parts_) {
+      for (int face = 0; face < 6; ++face) classes->push_back(ClassifyFace(part.box, face));
       const Eigen::Vector3f lo = part.box.min().cast<float>();
       const Eigen::Vector3f hi = part.box.max().cast<float>();
       auto corner = [&](int i) {
@@ -456,9 +512,18 @@ std::unique_ptr<Scene> Scene::Generate(const SceneOptions& options,
     scene->route_ = WalkingRoute();
     builder.KeepClear(keep_clear, 0.7);
   }
-  scene->triangles_ = builder.Triangles(&scene->num_surfaces_);
+  scene->triangles_ = builder.Triangles(&scene->num_surfaces_, &scene->surface_classes_);
   scene->Build();
+  scene->AssignMaterials(MaterialOptions().texture_poor_fraction);
   return scene;
+}
+
+void Scene::AssignMaterials(double texture_poor_fraction) {
+  std::vector<SurfaceClass> classes(num_surfaces_, SurfaceClass::kObject);
+  std::copy_n(surface_classes_.begin(), std::min(surface_classes_.size(), classes.size()),
+              classes.begin());
+  materials_ = sim::AssignMaterials(classes, options_.materials, texture_poor_fraction,
+                                    static_cast<uint32_t>(options_.seed));
 }
 
 std::unique_ptr<Scene> Scene::FromTriangles(std::vector<Triangle> triangles) {

@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "core/types.h"
+#include "sim/materials.h"
 
 namespace lisfm {
 namespace sim {
@@ -35,6 +36,9 @@ struct SceneOptions {
   double pillar_spacing = 8.0;  // hall pillar grid, m
   double car_density = 0.6;     // fraction of hall parking bays occupied
   double texture_scale = 1.0;   // multiplies the spatial frequencies of the texture
+  // The materials each surface class draws from (YAML: `materials: {wall:
+  // [painted_plaster, wood], ...}`, names from sim/materials.h).
+  MaterialPools materials;
 
   bool Check() const;
   // Throws InputError naming `where` (a scene file) and the failing field
@@ -45,7 +49,8 @@ struct SceneOptions {
 // Returns the defaults of a scene type; throws InputError for an unknown type.
 SceneOptions DefaultSceneOptions(const std::string& type);
 // Reads `configs/sim_*.yaml` (keys as the SceneOptions fields; missing keys keep
-// the defaults of its `type`). Throws InputError for unknown keys/bad values.
+// the defaults of its `type`). Throws InputError for unknown keys/bad values,
+// unknown surface classes and unknown material names.
 SceneOptions ReadSceneOptions(const std::string& path);
 
 // Resolves `--scene`: a type name ("office", "staircase", "hall") or a YAML path.
@@ -106,6 +111,26 @@ class Scene {
   const WalkingRoute& route() const { return route_; }
   const SceneOptions& options() const { return options_; }
   int num_surfaces() const { return num_surfaces_; }
+
+  // Per surface id: how the builder made it (kObject for FromTriangles
+  // scenes) and its material (DefaultMaterial() where none is assigned, e.g.
+  // ids beyond num_surfaces()).
+  SurfaceClass surface_class(uint32_t surface_id) const {
+    return surface_id < surface_classes_.size() ? surface_classes_[surface_id]
+                                                : SurfaceClass::kObject;
+  }
+  MaterialId material_id(uint32_t surface_id) const {
+    return surface_id < materials_.size() ? materials_[surface_id] : DefaultMaterial();
+  }
+  const Material& material(uint32_t surface_id) const {
+    return Materials()[material_id(surface_id)];
+  }
+  // Draws the material of every surface from options().materials
+  // (sim/materials.h AssignMaterials, seeded by options().seed). Generate()
+  // calls it with MaterialOptions' default fraction. Not thread-safe.
+  void AssignMaterials(double texture_poor_fraction);
+  // Sets the materials explicitly (one per surface id; tests). Not thread-safe.
+  void SetMaterials(std::vector<MaterialId> per_surface) { materials_ = std::move(per_surface); }
   Eigen::AlignedBox3d Bounds() const;
 
   // Writes the mesh as binary PLY (vertex x y z float, face list, per-face
@@ -119,6 +144,8 @@ class Scene {
   std::vector<Triangle> triangles_;
   WalkingRoute route_;
   int num_surfaces_ = 0;
+  std::vector<SurfaceClass> surface_classes_;  // per surface id
+  std::vector<MaterialId> materials_;          // per surface id
   struct EmbreeState;
   std::unique_ptr<EmbreeState> embree_;
 };

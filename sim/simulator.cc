@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <atomic>
 #include <chrono>
+#include <cmath>
 #include <fstream>
 #include <iomanip>
 #include <memory>
@@ -108,6 +109,19 @@ bool IsErrorSource(const std::string& token) {
   return std::find(names.begin(), names.end(), token) != names.end();
 }
 
+bool HasLidar(const std::string& lidars) {
+  for (const std::string& l : SplitList(lidars)) {
+    if (l != "none") return true;
+  }
+  return false;
+}
+
+// Whether `token` is named in the list itself (not through "all").
+bool ErrorSourceNamed(const std::string& list, const std::string& token) {
+  const std::vector<std::string> tokens = SplitList(list);
+  return std::find(tokens.begin(), tokens.end(), token) != tokens.end();
+}
+
 // "all", "none", or a comma list of error source tokens.
 bool IsErrorSourceList(const std::string& list) {
   const std::vector<std::string> tokens = SplitList(list);
@@ -138,6 +152,9 @@ void CheckErrorSourcesHaveSensors(const SimulatorOptions& options, const Rig& ri
           "camera to miscalibrate (--lidars none, and no cameras or "
           "--camera_rate 0)");
     }
+    if (t == "camera" && rig.cameras.empty()) {
+      throw UsageError("--error_sources camera: the rig has no cameras");
+    }
   }
 }
 
@@ -160,7 +177,7 @@ std::string DescribeCalibrationErrors(const Rig& rig, const CalibrationErrors& e
 }  // namespace
 
 const std::vector<std::string>& ErrorSourceNames() {
-  static const std::vector<std::string> kNames = {"calibration", "imu"};
+  static const std::vector<std::string> kNames = {"calibration", "imu", "lidar", "camera"};
   return kNames;
 }
 
@@ -183,8 +200,16 @@ bool SimulatorOptions::Check() const {
   CHECK_OPTION_MSG(rgbd_rate, rgbd_rate > 0 && rgbd_rate <= 100, "in (0, 100] Hz");
   CHECK_OPTION_MSG(lidars, IsLidarList(lidars), "a comma list of spinning, livox, none");
   CHECK_OPTION_MSG(error_sources, IsErrorSourceList(error_sources), ErrorSourceRequirement());
+  CHECK_OPTION_MSG(error_sources,
+                   !ErrorSourceNamed(error_sources, "lidar") || HasLidar(lidars),
+                   "without lidar: the source lidar needs a LiDAR (--lidars is none)");
+  CHECK_OPTION_MSG(error_sources, !ErrorSourceNamed(error_sources, "camera") || camera_rate > 0,
+                   "without camera: the source camera needs images (--camera_rate is 0)");
   CHECK_OPTION_NESTED(calibration_error);
   CHECK_OPTION_NESTED(imu_error);
+  CHECK_OPTION_NESTED(lidar_errors);
+  CHECK_OPTION_NESTED(camera_errors);
+  CHECK_OPTION_NESTED(materials);
   return true;
 }
 
@@ -240,6 +265,10 @@ SimulationSummary Simulate(const SimulatorOptions& options,
     LogInfo("calibration errors (true - rig.yaml): {}",
             DescribeCalibrationErrors(rig, calibration));
   }
+  const bool lidar_errors =
+      options.noise_scale > 0 && ErrorSourceEnabled(options.error_sources, "lidar");
+  const bool camera_errors =
+      options.noise_scale > 0 && ErrorSourceEnabled(options.error_sources, "camera");
 
   // ---- scene and motion ----
   LogStage("scene and motion");
@@ -294,6 +323,7 @@ SimulationSummary Simulate(const SimulatorOptions& options,
                                  &stationary);
     end_ns = start_ns + SecondsToNs(options.duration);
   }
+  scene->AssignMaterials(options.materials.texture_poor_fraction);
   summary.scene_type = scene_options.type;
   summary.num_triangles = scene->triangles().size();
   summary.duration_s = NsToSeconds(end_ns - start_ns);
@@ -424,6 +454,8 @@ SimulationSummary Simulate(const SimulatorOptions& options,
     LidarSimOptions lidar_options;
     lidar_options.noise_scale = options.noise_scale;
     lidar_options.seed = static_cast<uint64_t>(options.seed) * 31 + k;
+    lidar_options.errors_enabled = lidar_errors;
+    lidar_options.errors = options.lidar_errors;
     const LidarSimulator simulator(*scene, trajectory, lidar, texture, lidar_options);
     std::vector<TimestampNs> stamps(scan_starts[k].size());
     std::vector<size_t> counts(scan_starts[k].size());
@@ -459,26 +491,74 @@ SimulationSummary Simulate(const SimulatorOptions& options,
   camera_options.color = options.color;
   camera_options.noise_scale = options.noise_scale;
   if (!frame_times.empty()) {
+    std::unique_ptr<SceneLighting> lighting;
+    if (camera_errors) {
+      camera_options.errors_enabled = true;
+      camera_options.errors = options.camera_errors;
+      lighting = std::make_unique<SceneLighting>(
+          scene->Bounds(), static_cast<uint32_t>(scene_options.seed), options.camera_errors);
+    }
     std::vector<std::unique_ptr<CameraRenderer>> renderers;
     for (const RigCamera& cam : rig.cameras) {
-      renderers.push_back(
-          std::make_unique<CameraRenderer>(*scene, cam.model, texture, camera_options));
+      renderers.push_back(std::make_unique<CameraRenderer>(*scene, cam.model, texture,
+                                                           camera_options, lighting.get()));
       CreateDirs(JoinPaths(temp, cam.name + "/data"));
     }
-    const std::vector<int> png_params = kPngParams;
     const size_t num_cams = rig.cameras.size();
+    // Auto exposure: each camera's controller runs at ae_rate_hz on the
+    // metered radiance of its previous update; a frame uses the setting of
+    // the last update at or before it.
+    const double ae_dt = 1.0 / options.camera_errors.ae_rate_hz;
+    std::vector<std::vector<ExposureSetting>> ae_settings(num_cams);
+    if (camera_errors) {
+      const size_t ticks =
+          static_cast<size_t>(std::floor(NsToSeconds(end_ns - start_ns) / ae_dt)) + 1;
+      std::vector<double> metered(ticks * num_cams);
+      tbb::parallel_for(size_t{0}, metered.size(), [&](size_t i) {
+        const size_t j = i / num_cams, c = i % num_cams;
+        // Metered at the true capture time with the true extrinsic.
+        const TimestampNs t =
+            start_ns + SecondsToNs(j * ae_dt) + calibration.cameras[c].time_offset_ns;
+        metered[i] = renderers[c]->MeterRadiance(
+            trajectory.Pose(t) * true_rig.cameras[c].cam_from_imu.Inverse(), j * ae_dt);
+      });
+      for (size_t c = 0; c < num_cams; ++c) {
+        AutoExposure ae(options.camera_errors);
+        ae.Reset(metered[c]);
+        ae_settings[c].push_back(ae.setting());
+        for (size_t j = 1; j < ticks; ++j) {
+          ae.Update(metered[(j - 1) * num_cams + c], ae_dt);
+          ae_settings[c].push_back(ae.setting());
+        }
+      }
+    }
+    const std::vector<int> png_params = kPngParams;
     std::atomic<bool> write_failed{false};
     tbb::parallel_for(size_t{0}, frame_times.size() * num_cams, [&](size_t job) {
       const size_t f = job / num_cams, c = job % num_cams;
       const RigCamera& cam = rig.cameras[c];
       // Captured at the true time with the true extrinsic; stamped frame_times[f].
+      const TimestampNs capture_ns = frame_times[f] + calibration.cameras[c].time_offset_ns;
+      const SE3 imu_from_true_cam = true_rig.cameras[c].cam_from_imu.Inverse();
       const SE3 world_from_cam =
-          trajectory.Pose(frame_times[f] + calibration.cameras[c].time_offset_ns) *
-          true_rig.cameras[c].cam_from_imu.Inverse();
+          trajectory.Pose(capture_ns) * imu_from_true_cam;
+      const uint64_t noise_seed = static_cast<uint64_t>(options.seed) * 1000003 + job * 7919 + 1;
       const double c0 = ThreadCpuSeconds();
-      const cv::Mat image =
-          renderers[c]->Render(world_from_cam, static_cast<uint64_t>(options.seed) * 1000003 +
-                                                   job * 7919 + 1);
+      cv::Mat image;
+      if (camera_errors) {
+        CameraExposure exposure;
+        exposure.time_s = NsToSeconds(frame_times[f] - start_ns);
+        const size_t tick = std::min(ae_settings[c].size() - 1,
+                                     static_cast<size_t>(std::floor(exposure.time_s / ae_dt)));
+        exposure.setting = ae_settings[c][tick];
+        // Alphasense stamps are the middle of the exposure (true capture time).
+        const TimestampNs half = SecondsToNs(0.5 * exposure.setting.exposure_s);
+        exposure.world_from_cam_start = trajectory.Pose(capture_ns - half) * imu_from_true_cam;
+        exposure.world_from_cam_end = trajectory.Pose(capture_ns + half) * imu_from_true_cam;
+        image = renderers[c]->Render(world_from_cam, exposure, noise_seed);
+      } else {
+        image = renderers[c]->Render(world_from_cam, noise_seed);
+      }
       const double c1 = ThreadCpuSeconds();
       const std::string path = JoinPaths(
           temp, cam.name + "/data/" + std::to_string(frame_times[f]) + ".png");
@@ -514,6 +594,7 @@ SimulationSummary Simulate(const SimulatorOptions& options,
                              SE3(Quat::Identity(), Vec3(-0.05, -0.05, 0.0));
     CameraSimOptions rgbd_options = camera_options;
     rgbd_options.color = true;
+    rgbd_options.errors_enabled = false;  // the camera error sources model the rig's cameras
     const CameraRenderer renderer(*scene, model, texture, rgbd_options);
     const std::string dir = JoinPaths(temp, "rgbd0");
     CreateDirs(JoinPaths(dir, "rgb"));

@@ -19,6 +19,15 @@
 //    start and end at rest).
 //  - imu (sim/imu_errors.h): scale factor, misalignment and temperature bias
 //    drift of the IMU; truth/imu_errors.yaml holds the drawn values.
+//  - lidar (sim/lidar_simulator.h): incidence-dependent range noise, mixed
+//    pixels at depth edges, material intensity, dropouts and maximum ranges,
+//    acting on the points cast at the true time with the true extrinsic.
+//  - camera (sim/camera_errors.h): auto-exposure and gain, vignetting, sensor
+//    noise, motion blur over the exposure (poses at the true capture times
+//    with the true extrinsic), room and time lighting; texture-poor surfaces
+//    through the materials (sim/materials.h).
+// A source named explicitly for a sensor the recording does not have is an
+// error.
 //
 // Output goes through core's OutputFolder: checked before the work, written
 // into `<output_path>.tmp-<pid>` and renamed at the end, so a failed run never
@@ -34,7 +43,10 @@
 #include "core/rig.h"
 #include "core/time.h"
 #include "sim/calibration_errors.h"
+#include "sim/camera_errors.h"
 #include "sim/imu_errors.h"
+#include "sim/lidar_simulator.h"
+#include "sim/materials.h"
 
 namespace lisfm {
 namespace sim {
@@ -58,6 +70,9 @@ struct SimulatorOptions {
   std::string error_sources = "all";          // comma list of ErrorSourceNames(), or all / none
   CalibrationErrorOptions calibration_error;  // sizes of the `calibration` source
   ImuErrorOptions imu_error;                  // sizes of the `imu` source
+  LidarErrorOptions lidar_errors;    // the `lidar` source (sim/lidar_simulator.h)
+  CameraErrorOptions camera_errors;  // the `camera` source (sim/camera_errors.h)
+  MaterialOptions materials;         // surface materials (sim/materials.h)
 
   bool Check() const;
 };

@@ -6,6 +6,7 @@
 
 #include <gtest/gtest.h>
 
+#include "core/errors.h"
 #include "core/file_utils.h"
 #include "core/io/cloud_io.h"
 #include "core/io/rig_io.h"
@@ -114,6 +115,61 @@ TEST(Simulate, DeterministicForASeed) {
   options.output_path = dir.File("c");
   Simulate(options, rig);
   EXPECT_NE(ReadFile(dir.File("a/imu0/data.csv")), ReadFile(dir.File("c/imu0/data.csv")));
+}
+
+// --noise_scale 0 turns every error source off: with error_sources all and
+// none the folders hold the same bytes. With noise the lidar and camera
+// sources change the LiDAR scans and the images, and not the IMU data.
+TEST(Simulate, NoiseScaleZeroTurnsTheErrorSourcesOff) {
+  test::TempDir dir;
+  SimulatorOptions options;
+  options.duration = 1.5;
+  options.camera_rate = 2.0;
+  const Rig rig = TestRig();
+  auto run = [&](const std::string& name, double noise_scale, const std::string& sources) {
+    options.noise_scale = noise_scale;
+    options.error_sources = sources;
+    options.output_path = dir.File(name);
+    Simulate(options, rig);
+  };
+  run("exact_all", 0.0, "all");
+  run("exact_none", 0.0, "none");
+  run("noisy_lidar_camera", 1.0, "lidar,camera");
+  run("noisy_none", 1.0, "none");
+  LineReader reader(dir.File("exact_all/lidar0/data.csv"));
+  std::string line;
+  reader.Next(&line);
+  reader.Next(&line);
+  const std::string scan = "lidar0/data/" + SplitString(line, ",")[1];
+  const Trajectory gt = ReadTum(dir.File("exact_all/groundtruth.txt"));
+  const std::string image = "cam0/data/" + std::to_string(gt[50].t_ns) + ".png";
+  for (const std::string& file : {std::string("imu0/data.csv"), std::string("lidar0/data.csv"),
+                                 std::string("cam0/data.csv"), scan, image}) {
+    EXPECT_EQ(ReadFile(dir.File("exact_all/" + file)), ReadFile(dir.File("exact_none/" + file)))
+        << file;
+  }
+  EXPECT_EQ(ReadFile(dir.File("noisy_lidar_camera/imu0/data.csv")),
+            ReadFile(dir.File("noisy_none/imu0/data.csv")));
+  EXPECT_NE(ReadFile(dir.File("noisy_lidar_camera/" + image)),
+            ReadFile(dir.File("noisy_none/" + image)));
+  const PointCloud with = ReadPcd(dir.File("noisy_lidar_camera/" + scan));
+  const PointCloud without = ReadPcd(dir.File("noisy_none/" + scan));
+  EXPECT_LT(with.size(), without.size());  // dropouts and range limits
+}
+
+// A source named explicitly for a sensor the rig does not have is refused
+// and leaves no folder; "all" applies to the sensors there are.
+TEST(Simulate, CameraSourceWithoutCamerasIsAnError) {
+  test::TempDir dir;
+  SimulatorOptions options;
+  options.duration = 1.0;
+  options.error_sources = "camera";
+  options.output_path = dir.File("seq");
+  EXPECT_THROW(Simulate(options, PrepareRig(Rig(), "spinning")), UsageError);
+  EXPECT_FALSE(fs::exists(dir.File("seq")));
+  options.error_sources = "all";
+  Simulate(options, PrepareRig(Rig(), "spinning"));
+  EXPECT_TRUE(fs::exists(dir.File("seq/lidar0/data.csv")));
 }
 
 // Real motion: the ground truth is the TUM trajectory, translated into the scene.

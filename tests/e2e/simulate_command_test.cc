@@ -72,6 +72,35 @@ TEST(SimulateCommand, BadErrorSourceConfigurationFailsClearly) {
   }
 }
 
+// Error sources: an unknown source, a negative size, a source for a sensor the
+// recording does not have, an unknown material in a scene file: one error
+// naming the option or file, a non-zero exit, no output folder.
+TEST(SimulateCommand, BadErrorSourcesFailClearly) {
+  test::TempDir dir;
+  const std::string bin = test::LisfmBinary() + " simulate";
+  const std::string common = " --duration 2 --camera_rate 0 --output_path " + dir.File("o");
+  std::string out;
+  EXPECT_EQ(test::RunCommand(bin + " --error_sources lidar,weather" + common, &out), 2);
+  EXPECT_NE(out.find("--error_sources lidar,weather"), std::string::npos) << out;
+  EXPECT_EQ(test::RunCommand(bin + " --LidarErrors.beam_divergence_mrad -1" + common, &out), 2);
+  EXPECT_NE(out.find("--LidarErrors.beam_divergence_mrad -1 is out of range"),
+            std::string::npos)
+      << out;
+  EXPECT_EQ(test::RunCommand(bin + " --CameraErrors.read_noise_e -2" + common, &out), 2);
+  EXPECT_NE(out.find("CameraErrors.read_noise_e"), std::string::npos) << out;
+  EXPECT_EQ(test::RunCommand(bin + " --error_sources lidar --lidars none" + common, &out), 2);
+  EXPECT_NE(out.find("needs a LiDAR"), std::string::npos) << out;
+  EXPECT_EQ(test::RunCommand(bin + " --error_sources camera" + common, &out), 2);
+  EXPECT_NE(out.find("needs images"), std::string::npos) << out;
+  test::WriteText(dir.File("sim_bad.yaml"),
+                  "type: office\nmaterials:\n  wall: [painted_plaster, unobtanium]\n");
+  EXPECT_EQ(test::RunCommand(bin + " --scene " + dir.File("sim_bad.yaml") + common, &out), 1);
+  EXPECT_NE(out.find("sim_bad.yaml"), std::string::npos) << out;
+  EXPECT_NE(out.find("materials.wall"), std::string::npos) << out;
+  EXPECT_NE(out.find("unknown material 'unobtanium'"), std::string::npos) << out;
+  EXPECT_FALSE(fs::exists(dir.File("o")));
+}
+
 // --overwrite 1 replaces only a folder lisfm wrote: a user's folder is refused
 // before any simulation work, and left as it was.
 TEST(SimulateCommand, OverwriteNeverRemovesAFolderLisfmDidNotWrite) {
