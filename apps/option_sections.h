@@ -52,8 +52,13 @@ void AddTrajectoryEvaluationOptions(OptionManager* options,
 void AddSfmEvaluationOptions(OptionManager* options,
                              colmap::SfmEvaluationOptions* eval);
 
-// No section (lisfm simulate); `output_path` is required.
+// No section (lisfm simulate); `output_path` is required. Also registers
+// Walk.* (AddWalkingOptions) and Dynamics.* (AddDynamicsOptions).
 void AddSimulatorOptions(OptionManager* options, sim::SimulatorOptions* sim);
+// Walk.*: the generated walk of lisfm simulate.
+void AddWalkingOptions(OptionManager* options, sim::WalkingOptions* walk);
+// Dynamics.*: the people of error source `dynamics`.
+void AddDynamicsOptions(OptionManager* options, sim::DynamicsOptions* dynamics);
 
 // Mapper.* and the stages: Priors.*, ViewGraph.*, RotationAveraging.*,
 // TranslationAveraging.*, Triangulation.* (tracks and triangulation),

@@ -46,13 +46,15 @@ class CameraRenderer {
                  const TextureOptions& texture,
                  const CameraSimOptions& options);
 
-  // Renders the view of a camera at `world_from_cam` (z forward). `noise_seed`
-  // makes the pixel noise deterministic.
-  cv::Mat Render(const SE3& world_from_cam, uint64_t noise_seed) const;
+  // Renders the view of a camera at `world_from_cam` (z forward) at time
+  // `t_ns` (where the scene's people are; irrelevant without people).
+  // `noise_seed` makes the pixel noise deterministic.
+  cv::Mat Render(const SE3& world_from_cam, uint64_t noise_seed, TimestampNs t_ns = 0) const;
 
-  // Depth along the optical axis (z in the camera frame, m) per pixel centre;
-  // 0 where nothing was hit. Used by the RGB-D simulation and tests.
-  cv::Mat RenderDepth(const SE3& world_from_cam) const;
+  // Depth along the optical axis (z in the camera frame, m) per pixel centre
+  // at time `t_ns`; 0 where nothing was hit. Used by the RGB-D simulation and
+  // tests.
+  cv::Mat RenderDepth(const SE3& world_from_cam, TimestampNs t_ns = 0) const;
 
   const CameraModel& model() const { return model_; }
 

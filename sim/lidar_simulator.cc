@@ -85,8 +85,8 @@ PointCloud LidarSimulator::SimulateScan(TimestampNs scan_start_ns, int64_t scan_
     }
     for (int c = 0; c < columns; ++c) {
       const double t_s = period_s * c / columns;
-      const SE3 world_from_lidar =
-          trajectory_.Pose(scan_start_ns + SecondsToNs(t_s)) * lidar_.imu_from_lidar;
+      const TimestampNs t_ns = scan_start_ns + SecondsToNs(t_s);
+      const SE3 world_from_lidar = trajectory_.Pose(t_ns) * lidar_.imu_from_lidar;
       const double az = 2 * M_PI * c / columns;
       const double cos_az = std::cos(az), sin_az = std::sin(az);
       const float origin[3] = {static_cast<float>(world_from_lidar.translation().x()),
@@ -106,7 +106,8 @@ PointCloud LidarSimulator::SimulateScan(TimestampNs scan_start_ns, int64_t scan_
           for (int j = 0; j < 3; ++j) dirs[k][j] = static_cast<float>(dirs_world[k][j]);
         }
         RayHit hits[16];
-        scene_.Intersect16(valid, origin, dirs, max_range + 1.f, /*coherent=*/false, hits);
+        scene_.Intersect16At(t_ns, valid, origin, dirs, max_range + 1.f, /*coherent=*/false,
+                             hits);
         for (int k = 0; k < 16; ++k) {
           if (!valid[k]) continue;
           add_point(hits[k], world_from_lidar, dirs_lidar[k], dirs_world[k], t_s, r0 + k);
@@ -129,11 +130,11 @@ PointCloud LidarSimulator::SimulateScan(TimestampNs scan_start_ns, int64_t scan_
       const double theta = std::hypot(a, b), phi = std::atan2(b, a);
       const Vec3 dir_lidar(std::cos(theta), std::sin(theta) * std::cos(phi),
                            std::sin(theta) * std::sin(phi));
-      const SE3 world_from_lidar =
-          trajectory_.Pose(scan_start_ns + SecondsToNs(t_s)) * lidar_.imu_from_lidar;
+      const TimestampNs t_ns = scan_start_ns + SecondsToNs(t_s);
+      const SE3 world_from_lidar = trajectory_.Pose(t_ns) * lidar_.imu_from_lidar;
       const Vec3 dir_world = world_from_lidar.rotation() * dir_lidar;
-      const RayHit hit = scene_.Intersect(world_from_lidar.translation(), dir_world, 0.0,
-                                          lidar_.max_range + 1.0);
+      const RayHit hit = scene_.IntersectAt(t_ns, world_from_lidar.translation(), dir_world, 0.0,
+                                            lidar_.max_range + 1.0);
       add_point(hit, world_from_lidar, dir_lidar, dir_world, t_s, 0);
     }
   }

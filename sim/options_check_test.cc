@@ -35,8 +35,18 @@ TEST(SimOptionsCheck, Simulator) {
           {"supersampling", [](S* o) { o->supersampling = 9; }},
           {"rgbd_rate", [](S* o) { o->rgbd_rate = 0.0; }},
           {"lidars", [](S* o) { o->lidars = "spinning,velodyne"; }},
+          {"error_sources", [](S* o) { o->error_sources = "dynamics,rain"; }},
+          {"error_sources", [](S* o) { o->error_sources = "none,dynamics"; }},
+          {"error_sources", [](S* o) { o->error_sources = ""; }},
+          {"walk.num_stops", [](S* o) { o->walk.num_stops = 1; }},
+          {"dynamics.people_per_100m", [](S* o) { o->dynamics.people_per_100m = -1.0; }},
       },
       valid);
+  valid.error_sources = "dynamics";
+  EXPECT_TRUE(valid.Check());
+  EXPECT_TRUE(valid.HasErrorSource("dynamics"));
+  valid.noise_scale = 0;  // turns every error source off
+  EXPECT_FALSE(valid.HasErrorSource("dynamics"));
   valid.trajectory_path = "motion.txt";
   valid.duration = -1.0;  // all of the file
   EXPECT_TRUE(valid.Check());
@@ -78,6 +88,15 @@ TEST(SimOptionsCheck, SceneMotionAndTexture) {
       {"step_frequency", [](W* o) { o->step_frequency = 0.0; }},
       {"sway_scale", [](W* o) { o->sway_scale = -1.0; }},
       {"knot_spacing", [](W* o) { o->knot_spacing = 0.0; }},
+      {"num_stops", [](W* o) { o->num_stops = 1; }},
+      {"num_stops", [](W* o) { o->num_stops = 1001; }},
+  });
+  using D = DynamicsOptions;
+  ExpectCheckRejects<D>({
+      {"people_per_100m", [](D* o) { o->people_per_100m = -0.5; }},
+      {"people_per_100m", [](D* o) { o->people_per_100m = 101.0; }},
+      {"speed", [](D* o) { o->speed = 0.0; }},
+      {"speed", [](D* o) { o->speed = 3.5; }},
   });
   using T = TextureOptions;
   ExpectCheckRejects<T>(
@@ -99,6 +118,15 @@ TEST(SimOptionsCheck, SceneMotionAndTexture) {
       {"car_density", [](S* o) { o->car_density = 1.5; }},
       {"texture_scale", [](S* o) { o->texture_scale = 0.1; }},
   });
+  ExpectCheckRejects<S>(
+      {
+          {"length", [](S* o) { o->length = 50.0; }},
+          {"width", [](S* o) { o->width = 30.0; }},
+          {"height", [](S* o) { o->height = 2.5; }},
+          {"corridor_width", [](S* o) { o->corridor_width = 2.0; }},
+          {"room_depth", [](S* o) { o->room_depth = 9.0; }},
+      },
+      DefaultSceneOptions("site"));
   SceneOptions bad;
   bad.height = 30.0;
   try {

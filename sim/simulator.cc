@@ -33,10 +33,6 @@ namespace sim {
 namespace {
 
 
-// HILTI 2022 pole tip in the IMU frame (evaluation-2022, REFERENCES.md sec. 7):
-// control points are world_from_imu * kPoleTipInImu, as core/evaluation scores them.
-const Vec3 kPoleTipInImu(0.059, -0.00855, 0.1964);
-
 // Fastest lossless PNG: zlib level 0 (stored blocks). Measured on a noisy
 // 720x540 render: 4.5 ms and 390 KB per image, against 9.2 ms / 287 KB for
 // level 1 Huffman-only and 13.9 ms / 308 KB for level 1 default; sensor noise
@@ -102,7 +98,51 @@ bool IsLidarList(const std::string& lidars) {
   return true;
 }
 
+// A comma list of ErrorSourceTokens(), or `all` or `none` alone.
+bool IsErrorSourceList(const std::string& list) {
+  const std::vector<std::string> tokens = SplitList(list);
+  if (tokens.empty()) return false;
+  if (tokens.size() == 1 && (tokens[0] == "all" || tokens[0] == "none")) return true;
+  for (const std::string& t : tokens) {
+    const std::vector<std::string>& known = ErrorSourceTokens();
+    if (std::find(known.begin(), known.end(), t) == known.end()) return false;
+  }
+  return true;
+}
+
+std::string ErrorSourceRequirement() {
+  std::string s = "a comma list of";
+  for (const std::string& t : ErrorSourceTokens()) s += " " + t + ",";
+  return s + " or all or none";
+}
+
 }  // namespace
+
+const std::vector<std::string>& ErrorSourceTokens() {
+  static const std::vector<std::string> tokens = {"dynamics"};
+  return tokens;
+}
+
+bool SimulatorOptions::HasErrorSource(const std::string& token) const {
+  if (noise_scale <= 0) return false;
+  for (const std::string& t : SplitList(error_sources)) {
+    if (t == "all" || t == token) return true;
+  }
+  return false;
+}
+
+std::vector<ControlPoint> SurveyControlPoints(const SplineTrajectory& trajectory,
+                                              const std::vector<StationaryPeriod>& stationary,
+                                              TimestampNs start_ns,
+                                              TimestampNs end_ns) {
+  std::vector<ControlPoint> points;
+  for (const StationaryPeriod& p : stationary) {
+    if (p.end_ns > end_ns || p.start_ns < start_ns) continue;
+    const TimestampNs t = p.start_ns + (p.end_ns - p.start_ns) / 2;
+    points.push_back({t, trajectory.Pose(t) * kPoleTipInImu});
+  }
+  return points;
+}
 
 bool SimulatorOptions::Check() const {
   CHECK_OPTION_MSG(output_path, !output_path.empty(), "a folder name (required)");
@@ -114,6 +154,9 @@ bool SimulatorOptions::Check() const {
   CHECK_OPTION_MSG(supersampling, supersampling >= 1 && supersampling <= 8, "in [1, 8]");
   CHECK_OPTION_MSG(rgbd_rate, rgbd_rate > 0 && rgbd_rate <= 100, "in (0, 100] Hz");
   CHECK_OPTION_MSG(lidars, IsLidarList(lidars), "a comma list of spinning, livox, none");
+  CHECK_OPTION_MSG(error_sources, IsErrorSourceList(error_sources), ErrorSourceRequirement());
+  CHECK_OPTION_NESTED(walk);
+  CHECK_OPTION_NESTED(dynamics);
   return true;
 }
 
@@ -158,9 +201,9 @@ SimulationSummary Simulate(const SimulatorOptions& options,
   std::unique_ptr<Scene> scene;
   TimestampNs start_ns = 0, end_ns = 0;
   if (!options.trajectory_path.empty()) {
-    if (scene_options.type == "staircase") {
-      throw UsageError("--trajectory_path needs --scene office or hall (the staircase is "
-                       "built around its own route)");
+    if (scene_options.type == "staircase" || scene_options.type == "site") {
+      throw UsageError("--trajectory_path needs --scene office or hall (the " +
+                       scene_options.type + " is built around its own route)");
     }
     const Trajectory samples = ReadTum(options.trajectory_path);
     if (samples.size() < 10) {
@@ -198,12 +241,28 @@ SimulationSummary Simulate(const SimulatorOptions& options,
     scene = Scene::Generate(scene_options);
     start_ns = kDefaultStartNs;
     trajectory = GenerateWalking(scene->route(), options.duration, start_ns,
-                                 static_cast<uint32_t>(options.seed), WalkingOptions(),
+                                 static_cast<uint32_t>(options.seed), options.walk,
                                  &stationary);
     end_ns = start_ns + SecondsToNs(options.duration);
   }
+  if (options.HasErrorSource("dynamics")) {
+    // People walk the device's route; with real motion, the recorded path
+    // (sampled every metre, walked out and back).
+    WalkingRoute people_route = scene->route();
+    if (people_route.waypoints.empty()) {
+      for (TimestampNs t = start_ns; t <= end_ns; t += 50000000) {
+        const Vec3 p = trajectory.Pose(t).translation();
+        if (people_route.waypoints.empty() || (p - people_route.waypoints.back()).norm() >= 1.0) {
+          people_route.waypoints.push_back(p);
+        }
+      }
+    }
+    scene->SetPeople(GeneratePeople(*scene, people_route, options.dynamics, start_ns,
+                                    static_cast<uint32_t>(scene_options.seed)));
+  }
   summary.scene_type = scene_options.type;
   summary.num_triangles = scene->triangles().size();
+  summary.num_people = scene->people().size();
   summary.duration_s = NsToSeconds(end_ns - start_ns);
   const TextureOptions texture{static_cast<uint32_t>(scene_options.seed),
                                static_cast<float>(scene_options.texture_scale)};
@@ -230,15 +289,29 @@ SimulationSummary Simulate(const SimulatorOptions& options,
     std::ostringstream cp;
     cp << "# timestamp_s x y z qx qy qz qw: HILTI-style control points, the pole tip "
           "world_from_imu * (0.059, -0.00855, 0.1964) in the middle of each rest\n";
-    for (const StationaryPeriod& p : stationary) {
-      if (p.end_ns > end_ns || p.start_ns < start_ns) continue;
-      const TimestampNs t = p.start_ns + (p.end_ns - p.start_ns) / 2;
-      const Vec3 tip = trajectory.Pose(t) * kPoleTipInImu;
-      cp << FormatNsAsSeconds(t) << std::setprecision(17) << " " << tip.x() << " " << tip.y()
-         << " " << tip.z() << " 0 0 0 1\n";
+    for (const ControlPoint& p : SurveyControlPoints(trajectory, stationary, start_ns, end_ns)) {
+      cp << FormatNsAsSeconds(p.t_ns) << std::setprecision(17) << " " << p.position.x() << " "
+         << p.position.y() << " " << p.position.z() << " 0 0 0 1\n";
       ++summary.num_control_points;
     }
     WriteFileAtomically(JoinPaths(temp, "controlpoints.txt"), cp.str());
+  }
+  if (!scene->people().empty()) {
+    // The people's tracks at 10 Hz: feet position and heading.
+    std::ostringstream tracks;
+    tracks << std::setprecision(10)
+           << "#timestamp [ns],person,x [m],y [m],z [m],yaw [rad]   (feet, scene frame)\n";
+    for (TimestampNs t = start_ns; t <= end_ns; t += 100000000) {
+      for (size_t i = 0; i < scene->people().size(); ++i) {
+        Vec3 feet;
+        double yaw;
+        scene->people()[i].Locate(t, &feet, &yaw);
+        tracks << t << "," << i << "," << feet.x() << "," << feet.y() << "," << feet.z() << ","
+               << yaw << "\n";
+      }
+    }
+    CreateDirs(JoinPaths(temp, "truth"));
+    WriteFileAtomically(JoinPaths(temp, "truth/people.csv"), tracks.str());
   }
 
   // ---- IMU ----
@@ -358,8 +431,9 @@ SimulationSummary Simulate(const SimulatorOptions& options,
           trajectory.Pose(frame_times[f]) * cam.cam_from_imu.Inverse();
       const double c0 = ThreadCpuSeconds();
       const cv::Mat image =
-          renderers[c]->Render(world_from_cam, static_cast<uint64_t>(options.seed) * 1000003 +
-                                                   job * 7919 + 1);
+          renderers[c]->Render(world_from_cam,
+                               static_cast<uint64_t>(options.seed) * 1000003 + job * 7919 + 1,
+                               frame_times[f]);
       const double c1 = ThreadCpuSeconds();
       const std::string path = JoinPaths(
           temp, cam.name + "/data/" + std::to_string(frame_times[f]) + ".png");
@@ -408,8 +482,8 @@ SimulationSummary Simulate(const SimulatorOptions& options,
     const std::vector<int> png_params = kPngParams;
     tbb::parallel_for(size_t{0}, times.size(), [&](size_t i) {
       const SE3 world_from_cam = trajectory.Pose(times[i]) * cam_from_imu.Inverse();
-      const cv::Mat rgb = renderer.Render(world_from_cam, 77 + i);
-      const cv::Mat depth = renderer.RenderDepth(world_from_cam);
+      const cv::Mat rgb = renderer.Render(world_from_cam, 77 + i, times[i]);
+      const cv::Mat depth = renderer.RenderDepth(world_from_cam, times[i]);
       // Depth noise of a structured-light sensor (Nguyen et al. 2012):
       // sigma_z = 1.2 mm + 1.9 mm * (z - 0.4)^2; holes below 0.4 m, beyond
       // 6 m, at 1 % random pixels and along depth discontinuities.

@@ -20,6 +20,8 @@
 
 #include "core/rig.h"
 #include "core/time.h"
+#include "sim/motion.h"
+#include "sim/people.h"
 
 namespace lisfm {
 namespace sim {
@@ -27,7 +29,7 @@ namespace sim {
 constexpr TimestampNs kDefaultStartNs = 1700000000LL * kNsPerSecond;
 
 struct SimulatorOptions {
-  std::string scene = "office";   // office | staircase | hall | path to configs/sim_*.yaml
+  std::string scene = "office";   // office | staircase | hall | site | configs/sim_*.yaml path
   std::string trajectory_path;    // optional TUM file of real motion (world_from_imu)
   double duration = 60.0;         // s; with a TUM file: at most its length (<= 0: all of it)
   double camera_rate = 2.0;       // Hz, rig frames per second (0 = no cameras)
@@ -40,9 +42,34 @@ struct SimulatorOptions {
   bool rgbd = false;              // add an RGB-D camera (rgbd0/)
   double rgbd_rate = 5.0;         // Hz
   bool overwrite = false;         // replace an earlier lisfm output folder at output_path
+  // Comma list of the error sources to simulate (ErrorSourceTokens()), or all
+  // or none; noise_scale 0 turns every one of them off.
+  std::string error_sources = "all";
+  WalkingOptions walk;       // generated motion (not used with trajectory_path)
+  DynamicsOptions dynamics;  // error source `dynamics`: people walking through the scene
 
   bool Check() const;
+  // True when error source `token` is on: listed (or `all`) and noise_scale > 0.
+  bool HasErrorSource(const std::string& token) const;
 };
+
+// The error-source tokens SimulatorOptions::error_sources accepts besides all
+// and none.
+const std::vector<std::string>& ErrorSourceTokens();
+
+// A HILTI-style control point: the pole tip world_from_imu * kPoleTipInImu
+// (HILTI 2022 evaluation, REFERENCES.md sec. 7) at the middle of a rest.
+inline const Vec3 kPoleTipInImu(0.059, -0.00855, 0.1964);
+struct ControlPoint {
+  TimestampNs t_ns = 0;
+  Vec3 position = Vec3::Zero();  // scene frame, m
+};
+// One control point per stationary period inside [start_ns, end_ns], at its
+// middle, in time order.
+std::vector<ControlPoint> SurveyControlPoints(const SplineTrajectory& trajectory,
+                                              const std::vector<StationaryPeriod>& stationary,
+                                              TimestampNs start_ns,
+                                              TimestampNs end_ns);
 
 struct SimulationSummary {
   std::string scene_type;
@@ -55,6 +82,7 @@ struct SimulationSummary {
   size_t num_rgbd = 0;
   size_t num_control_points = 0;
   size_t num_triangles = 0;
+  size_t num_people = 0;
   double seconds_scene = 0, seconds_imu = 0, seconds_lidar = 0, seconds_cameras = 0,
          seconds_total = 0;
   // Breakdown in CPU seconds summed over threads (thread CPU clocks, so other
