@@ -1,7 +1,11 @@
 #!/usr/bin/env bash
 # Benchmark of `lisfm simulate`: a 120 s office sequence (1200 spinning scans,
-# 5 cameras at 2 Hz = 1200 images, IMU 400 Hz). Prints a table for
-# docs/BENCHMARKS.md (simulate section).  Usage: scripts/bench_simulate.sh [build_dir]
+# 5 cameras at 2 Hz = 1200 images, IMU 400 Hz) as earlier versions made it
+# (--error_sources none --Walk.num_stops 3), with and without cameras; the same
+# with every error source on (the defaults); and the five-minute construction
+# site with every error source on (3000 scans, 3000 images, ~5 GB). Prints a
+# table for docs/BENCHMARKS.md (simulate section); the real-time factor is the
+# sequence length over the wall time.  Usage: scripts/bench_simulate.sh [build_dir]
 set -euo pipefail
 BUILD="${1:-build}"
 LISFM="$BUILD/apps/lisfm"
@@ -10,20 +14,26 @@ trap 'rm -rf "$OUT"' EXIT
 CPU="$(lscpu | sed -n 's/^Model name:[[:space:]]*//p' | head -1)"
 echo "CPU: $CPU, $(nproc) cores"
 echo "load before: $(uptime | sed 's/.*load average/load average/')"
-run() {
-  local name="$1"; shift
-  local t0 t1
+run() {  # name, sequence length (s), simulate options
+  local name="$1" duration="$2"; shift 2
+  local t0 t1 wall
   t0=$(date +%s.%N)
-  "$LISFM" simulate --output_path "$OUT/$name" "$@" > "$OUT/$name.log" 2>&1
+  "$LISFM" simulate --output_path "$OUT/$name" --duration "$duration" "$@" > "$OUT/$name.log" 2>&1
   t1=$(date +%s.%N)
+  wall=$(awk -v a="$t0" -v b="$t1" 'BEGIN{print b-a}')
   local size
   size=$(du -sh "$OUT/$name" | cut -f1)
-  printf "| %-34s | %8.1f | %6s |\n" "$name $*" "$(awk -v a="$t0" -v b="$t1" 'BEGIN{print b-a}')" "$size"
+  printf "| %-34s | %8.1f | %5.1fx | %6s |\n" "$name $*" "$wall" \
+    "$(awk -v d="$duration" -v w="$wall" 'BEGIN{print d/w}')" "$size"
   grep -o "Time [0-9.]* s (scene.*)" "$OUT/$name.log" | sed 's/^/    /' || true
   grep -o "CPU breakdown.*" "$OUT/$name.log" | sed 's/^/    /' || true
+  rm -rf "${OUT:?}/$name"
 }
-echo "| run | wall s | size |"
-echo "|---|---|---|"
-run office120 --scene office --duration 120 --camera_rate 2 --lidars spinning
-run office120_lidar_only --scene office --duration 120 --camera_rate 0 --lidars spinning
+TODAY=(--error_sources none --Walk.num_stops 3)
+echo "| run | wall s | real time | size |"
+echo "|---|---|---|---|"
+run office120 120 --scene office --camera_rate 2 --lidars spinning "${TODAY[@]}"
+run office120_lidar_only 120 --scene office --camera_rate 0 --lidars spinning "${TODAY[@]}"
+run office120_all_sources 120 --scene office --camera_rate 2 --lidars spinning
+run site300_all_sources 300 --scene site --camera_rate 2 --lidars spinning
 echo "load after: $(uptime | sed 's/.*load average/load average/')"

@@ -117,6 +117,7 @@ void WalkingPerson::Locate(TimestampNs t_ns, Vec3* feet, double* yaw) const {
   const double w = f - i0;
   auto at = [&](int i) -> const Vec3& { return path_[((i % n) + n) % n]; };
   *feet = at(i0) + (at(i0 + 1) - at(i0)) * w;
+  if (yaw == nullptr) return;
   // Heading: central differences over +-0.3 m, blended between the samples.
   constexpr int k = 3;
   const Vec3 t0 = at(i0 + k) - at(i0 - k), t1 = at(i0 + 1 + k) - at(i0 + 1 - k);
@@ -126,8 +127,7 @@ void WalkingPerson::Locate(TimestampNs t_ns, Vec3* feet, double* yaw) const {
 
 Eigen::Vector3f WalkingPerson::BoundCentre(TimestampNs t_ns) const {
   Vec3 feet;
-  double yaw;
-  Locate(t_ns, &feet, &yaw);
+  Locate(t_ns, &feet, nullptr);
   return feet.cast<float>() + Eigen::Vector3f(0, 0, kBoundZ);
 }
 

@@ -83,7 +83,8 @@ class WalkingPerson {
   WalkingPerson(
       std::vector<Vec3> path, double spacing_m, double start_m, double speed, TimestampNs start_ns);
 
-  // Feet position (scene frame) and heading (rad about z, 0 = +x) at t_ns.
+  // Feet position (scene frame) and heading (rad about z, 0 = +x; not
+  // computed when `yaw` is null) at t_ns.
   void Locate(TimestampNs t_ns, Vec3* feet, double* yaw) const;
   // Bounding sphere centre at t_ns (radius PersonPose::radius).
   Eigen::Vector3f BoundCentre(TimestampNs t_ns) const;

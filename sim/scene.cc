@@ -930,9 +930,15 @@ void Scene::IntersectPeople(TimestampNs t_ns,
   }
   const Eigen::Vector3f o(origin[0], origin[1], origin[2]);
   const float radius = PersonPose().radius;
+  // People beyond every ray's current hit are hidden (most of them, behind walls).
+  float reach = 0.f;
+  for (int k = 0; k < num_rays; ++k) {
+    if (valid[k]) reach = std::max(reach, hits[k].hit ? hits[k].distance : max_range);
+  }
   for (size_t p = 0; p < n; ++p) {
     const Eigen::Vector3f oc = cache.centres[p] - o;
     const float q = oc.squaredNorm() - radius * radius;
+    if (q > 0.f && oc.squaredNorm() > (reach + radius) * (reach + radius)) continue;
     for (int k = 0; k < num_rays; ++k) {
       if (!valid[k]) continue;
       const Eigen::Vector3f d(directions[k][0], directions[k][1], directions[k][2]);

@@ -12,6 +12,10 @@
 // leaves a folder that looks complete; `overwrite` replaces only an earlier
 // lisfm output (a folder holding the .lisfm_output marker). Deterministic for a
 // given seed (TBB only changes the order of work, never the values).
+//
+// Error sources (SimulatorOptions::error_sources, all off with noise_scale 0):
+// `dynamics` puts people on the scene's route (sim/people.h); every LiDAR ray
+// and camera frame sees them at its own time, truth/people.csv has their tracks.
 #pragma once
 
 #include <functional>
