@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Benchmark of `lisfm simulate`: a 120 s office sequence (1200 spinning scans,
-# 5 cameras at 2 Hz = 1200 images, IMU 400 Hz) as earlier versions made it
-# (--error_sources none --Walk.num_stops 3), with and without cameras; the same
+# 5 cameras at 2 Hz = 1200 images, IMU 400 Hz) without error sources and with
+# three rests (--error_sources none --Walk.num_stops 3), with and without cameras; the same
 # with every error source on (the defaults); and the five-minute construction
 # site with every error source on (3000 scans, 3000 images, ~5 GB). Prints a
 # table for docs/BENCHMARKS.md (simulate section); the real-time factor is the
@@ -29,11 +29,11 @@ run() {  # name, sequence length (s), simulate options
   grep -o "CPU breakdown.*" "$OUT/$name.log" | sed 's/^/    /' || true
   rm -rf "${OUT:?}/$name"
 }
-TODAY=(--error_sources none --Walk.num_stops 3)
+CLEAN=(--error_sources none --Walk.num_stops 3)
 echo "| run | wall s | real time | size |"
 echo "|---|---|---|---|"
-run office120 120 --scene office --camera_rate 2 --lidars spinning "${TODAY[@]}"
-run office120_lidar_only 120 --scene office --camera_rate 0 --lidars spinning "${TODAY[@]}"
+run office120 120 --scene office --camera_rate 2 --lidars spinning "${CLEAN[@]}"
+run office120_lidar_only 120 --scene office --camera_rate 0 --lidars spinning "${CLEAN[@]}"
 run office120_all_sources 120 --scene office --camera_rate 2 --lidars spinning
 run site300_all_sources 300 --scene site --camera_rate 2 --lidars spinning
 echo "load after: $(uptime | sed 's/.*load average/load average/')"
