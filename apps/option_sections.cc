@@ -491,11 +491,47 @@ void AddSfmEvaluationOptions(OptionManager* options,
   options->AddStructCheck([eval] { return eval->Check(); });
 }
 
+void AddWalkingOptions(OptionManager* options, sim::WalkingOptions* walk) {
+  options->AddInt("Walk.num_stops",
+                  &walk->num_stops,
+                  "rests of a generated walk, each a HILTI-style control-point "
+                  "survey (controlpoints.txt): at the start, at the end and at "
+                  "equal time steps between (3: start, middle, end)",
+                  R::Between(2, 1000));
+  options->AddDouble("Walk.speed",
+                     &walk->speed,
+                     "mean speed of a generated walk (m/s)",
+                     R::GreaterThan(0));
+  options->AddDouble("Walk.stationary_s",
+                     &walk->stationary_s,
+                     "length of each rest of a generated walk (s; at most "
+                     "duration / (2 num_stops))",
+                     R::AtLeast(0));
+  options->AddStructCheck([walk] { return walk->Check(); });
+}
+
+void AddDynamicsOptions(OptionManager* options, sim::DynamicsOptions* dynamics) {
+  options->AddDouble(
+      "Dynamics.people_per_100m",
+      &dynamics->people_per_100m,
+      "error source dynamics: people walking the scene's route, per 100 m of "
+      "it (no published figure; HILTI 2022 names people moving among the "
+      "difficulties of its construction sequences; 0 = none)",
+      R::Between(0, 100));
+  options->AddDouble(
+      "Dynamics.speed",
+      &dynamics->speed,
+      "mean walking speed of the people, m/s, each +-15 % (comfortable gait "
+      "speed of adults 1.27-1.46 m/s, Bohannon 1997)",
+      R::GreaterThan(0).AndAtMost(3));
+  options->AddStructCheck([dynamics] { return dynamics->Check(); });
+}
+
 void AddSimulatorOptions(OptionManager* options, sim::SimulatorOptions* sim) {
   options->AddString(
       "scene",
       &sim->scene,
-      "office | staircase | hall, or a configs/sim_*.yaml scene file");
+      "office | staircase | hall | site, or a configs/sim_*.yaml scene file");
   options->AddString(
       "trajectory_path",
       &sim->trajectory_path,
@@ -541,13 +577,16 @@ void AddSimulatorOptions(OptionManager* options, sim::SimulatorOptions* sim) {
                      "temperature bias drift; truth/imu_errors.yaml), lidar (incidence "
                      "noise, mixed pixels, material intensity, dropouts, maximum range), "
                      "camera (auto exposure and gain, sensor noise, motion blur, "
-                     "lighting); a comma list, all, or none (the clean recording; "
-                     "--noise_scale 0 turns all off)");
+                     "lighting), dynamics (people walking through the scene; "
+                     "truth/people.csv); a comma list, all, or none (the clean "
+                     "recording; --noise_scale 0 turns all off)");
   AddCalibrationErrorOptions(options, &sim->calibration_error);
   AddImuErrorOptions(options, &sim->imu_error);
   AddLidarErrorOptions(options, &sim->lidar_errors);
   AddCameraErrorOptions(options, &sim->camera_errors);
   AddMaterialOptions(options, &sim->materials);
+  AddWalkingOptions(options, &sim->walk);
+  AddDynamicsOptions(options, &sim->dynamics);
   options->AddStructCheck([sim] { return sim->Check(); });
 }
 

@@ -60,8 +60,9 @@ void AddSfmEvaluationOptions(OptionManager* options,
                              colmap::SfmEvaluationOptions* eval);
 
 // No section (lisfm simulate); `output_path` is required. Also registers the
-// error source sizes and materials for sim's members: CalibrationError.*,
-// ImuError.*, LidarErrors.*, CameraErrors.* and Materials.* (below).
+// error source sizes, materials and walk for sim's members: CalibrationError.*,
+// ImuError.*, LidarErrors.*, CameraErrors.*, Materials.*, Walk.* and
+// Dynamics.* (below).
 void AddSimulatorOptions(OptionManager* options, sim::SimulatorOptions* sim);
 // CalibrationError.*: the `calibration` error source of lisfm simulate.
 void AddCalibrationErrorOptions(OptionManager* options, sim::CalibrationErrorOptions* calibration);
@@ -73,6 +74,12 @@ void AddLidarErrorOptions(OptionManager* options, sim::LidarErrorOptions* errors
 void AddCameraErrorOptions(OptionManager* options, sim::CameraErrorOptions* errors);
 // Materials.*: surface materials of the simulated scenes.
 void AddMaterialOptions(OptionManager* options, sim::MaterialOptions* materials);
+// Walk.* (AddWalkingOptions) and Dynamics.* (AddDynamicsOptions).
+void AddSimulatorOptions(OptionManager* options, sim::SimulatorOptions* sim);
+// Walk.*: the generated walk of lisfm simulate.
+void AddWalkingOptions(OptionManager* options, sim::WalkingOptions* walk);
+// Dynamics.*: the people of error source `dynamics`.
+void AddDynamicsOptions(OptionManager* options, sim::DynamicsOptions* dynamics);
 
 // Mapper.* and the stages: Priors.*, ViewGraph.*, RotationAveraging.*,
 // TranslationAveraging.*, Triangulation.* (tracks and triangulation),

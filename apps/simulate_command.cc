@@ -1,6 +1,6 @@
 // `lisfm simulate`: a HILTI-style recording with exact ground truth (sim/).
 //
-//   lisfm simulate --output_path DIR [--scene office|staircase|hall|sim_x.yaml]
+//   lisfm simulate --output_path DIR [--scene office|staircase|hall|site|sim_x.yaml]
 //                  [--trajectory_path TUM] [--duration s] [--camera_rate Hz]
 //                  [--lidars spinning[,livox]] [--noise_scale k] [--seed n]
 //                  [--rig_path rig.yaml] [--rgbd 0|1] [--supersampling n] [--color 0|1]
@@ -59,10 +59,11 @@ int RunSimulate(int argc, char** argv) {
   }
   LogInfo(
       "simulate: {} scene ({} triangles), {:.1f} s, path {:.1f} m; {} IMU samples; {}{} images "
-      "from {} cameras; {} RGB-D frames; {} control points. Time {:.1f} s (scene {:.1f}, IMU "
-      "{:.1f}, LiDAR {:.1f}, cameras {:.1f}). Output: {}",
+      "from {} cameras; {} RGB-D frames; {} control points; {} people. Time {:.1f} s (scene "
+      "{:.1f}, IMU {:.1f}, LiDAR {:.1f}, cameras {:.1f}). Output: {}",
       s.scene_type, s.num_triangles, s.duration_s, s.path_length_m, s.num_imu, lidar_text,
-      s.num_images, rig.cameras.size(), s.num_rgbd, s.num_control_points, s.seconds_total,
+      s.num_images, rig.cameras.size(), s.num_rgbd, s.num_control_points, s.num_people,
+      s.seconds_total,
       s.seconds_scene, s.seconds_imu, s.seconds_lidar, s.seconds_cameras,
       sim_options.output_path);
   return 0;

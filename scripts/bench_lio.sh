@@ -24,9 +24,9 @@ simulate() {  # name, extra args
       --error_sources none --overwrite 1 --quiet "$@"
   fi
 }
-simulate office_exp04 --scene office --trajectory_path "$EXP04"
-simulate staircase --scene staircase
-simulate hall --scene hall
+simulate office_exp04 --scene office --trajectory_path "$EXP04" --error_sources none
+simulate staircase --scene staircase --error_sources none --Walk.num_stops 3
+simulate hall --scene hall --error_sources none --Walk.num_stops 3
 
 rows=()
 for seq in office_exp04 staircase hall; do

@@ -78,8 +78,8 @@ rows=()
 for seed in $SEEDS; do
   clean="$WORK/office_s$seed"
   if [ ! -f "$clean/groundtruth.txt" ]; then
-    "$LISFM" simulate --scene office --duration "$DURATION" --camera_rate 0 --seed "$seed" --error_sources none \
-      --output_path "$clean" --overwrite 1 --quiet ${SIM_ARGS[@]+"${SIM_ARGS[@]}"}
+    "$LISFM" simulate --scene office --duration "$DURATION" --camera_rate 0 --seed "$seed" \
+      --error_sources none --Walk.num_stops 3 --output_path "$clean" --overwrite 1 --quiet ${SIM_ARGS[@]+"${SIM_ARGS[@]}"}
   fi
   perturb "$clean" "$WORK/office_s${seed}_wrong" "$seed"
   for rep in $(seq 1 "$REPEATS"); do

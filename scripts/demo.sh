@@ -22,8 +22,8 @@ lisfm_build
 mkdir -p "$OUT"
 
 echo "== 1/4 simulate a 30 s office recording =="
-"$LISFM" simulate --scene office --duration 30 --camera_rate 0.5 --seed 1 --error_sources none \
-  --output_path "$OUT/sequence" --overwrite 1
+"$LISFM" simulate --scene office --duration 30 --camera_rate 0.5 --seed 1 \
+  --error_sources none --Walk.num_stops 3 --output_path "$OUT/sequence" --overwrite 1
 echo "== 2/4 LiDAR-inertial odometry =="
 "$LISFM" lio --input_path "$OUT/sequence" --output_path "$OUT/lio" --overwrite 1
 echo "== 3/4 evaluate the odometry against the simulator's ground truth =="

@@ -207,7 +207,9 @@ TEST(CameraErrors, AutoExposureConvergesAfterAStep) {
 // (the meter samples every 32nd pixel).
 TEST(CameraErrors, RenderedMedianMeetsTheAutoExposureTarget) {
   const auto scene = Scene::Generate(DefaultSceneOptions("office"));
-  const SplineTrajectory walk = GenerateWalking(scene->route(), 20.0, 0, 2, WalkingOptions(), nullptr);
+  WalkingOptions walk_options;
+  walk_options.num_stops = 3;  // the walk this bound was set on
+  const SplineTrajectory walk = GenerateWalking(scene->route(), 20.0, 0, 2, walk_options, nullptr);
   const SceneLighting lighting(scene->Bounds(), 1, CameraErrorOptions());
   const CameraRenderer renderer(*scene, Pinhole(), TextureOptions(), ErrorOptions(), &lighting);
   // Camera looking along the walking direction (imu x forward, camera z = imu x).

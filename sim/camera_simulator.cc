@@ -104,7 +104,9 @@ inline float HashGaussian(uint64_t h) {
 
 }  // namespace
 
-cv::Mat CameraRenderer::Render(const SE3& world_from_cam, uint64_t noise_seed) const {
+cv::Mat CameraRenderer::Render(const SE3& world_from_cam,
+                               uint64_t noise_seed,
+                               TimestampNs t_ns) const {
   const int w = model_.width, h = model_.height;
   cv::Mat image(h, w, options_.color ? CV_8UC3 : CV_8UC1);
   const Eigen::Matrix3f rot = world_from_cam.RotationMatrix().cast<float>();
@@ -144,7 +146,8 @@ cv::Mat CameraRenderer::Render(const SE3& world_from_cam, uint64_t noise_seed) c
             dirs[k][2] = d.z();
           }
           RayHit hits[16];
-          scene_.Intersect16(valid, origin_arr, dirs, max_range, /*coherent=*/true, hits);
+          scene_.Intersect16At(t_ns, valid, origin_arr, dirs, max_range, /*coherent=*/true,
+                               hits);
           for (int k = 0; k < 16; ++k) {
             if (!valid[k] || !hits[k].hit) continue;
             const Eigen::Vector3f p =
@@ -184,7 +187,8 @@ cv::Mat CameraRenderer::Render(const SE3& world_from_cam, uint64_t noise_seed) c
 
 cv::Mat CameraRenderer::Render(const SE3& world_from_cam,
                                const CameraExposure& exposure,
-                               uint64_t noise_seed) const {
+                               uint64_t noise_seed,
+                               TimestampNs t_ns) const {
   THROW_CHECK(options_.errors_enabled);
   const CameraErrorOptions& e = options_.errors;
   const int w = model_.width, h = model_.height;
@@ -227,7 +231,8 @@ cv::Mat CameraRenderer::Render(const SE3& world_from_cam,
             dirs[k][2] = d.z();
           }
           RayHit hits[16];
-          scene_.Intersect16(valid, origin_arr, dirs, max_range, /*coherent=*/true, hits);
+          scene_.Intersect16At(t_ns, valid, origin_arr, dirs, max_range, /*coherent=*/true,
+                               hits);
           for (int k = 0; k < 16; ++k) {
             if (!valid[k] || !hits[k].hit) continue;
             const Eigen::Vector3f p =
@@ -337,7 +342,9 @@ cv::Mat CameraRenderer::Render(const SE3& world_from_cam,
   return image;
 }
 
-double CameraRenderer::MeterRadiance(const SE3& world_from_cam, double time_s) const {
+double CameraRenderer::MeterRadiance(const SE3& world_from_cam,
+                                     double time_s,
+                                     TimestampNs t_ns) const {
   constexpr int kStride = 32;
   const int w = model_.width, h = model_.height;
   const LightField light = lighting_ != nullptr ? lighting_->At(time_s) : LightField();
@@ -362,8 +369,8 @@ double CameraRenderer::MeterRadiance(const SE3& world_from_cam, double time_s) c
       dirs[k][2] = d.z();
     }
     RayHit hits[16];
-    scene_.Intersect16(valid, origin_arr, dirs, static_cast<float>(options_.max_range),
-                       /*coherent=*/false, hits);
+    scene_.Intersect16At(t_ns, valid, origin_arr, dirs, static_cast<float>(options_.max_range),
+                         /*coherent=*/false, hits);
     for (int k = 0; k < 16; ++k) {
       if (!valid[k] || !hits[k].hit) continue;
       const Eigen::Vector3f p =
@@ -379,15 +386,15 @@ double CameraRenderer::MeterRadiance(const SE3& world_from_cam, double time_s) c
   return values[values.size() / 2];
 }
 
-cv::Mat CameraRenderer::RenderDepth(const SE3& world_from_cam) const {
+cv::Mat CameraRenderer::RenderDepth(const SE3& world_from_cam, TimestampNs t_ns) const {
   const int w = model_.width, h = model_.height;
   cv::Mat depth(h, w, CV_32FC1, cv::Scalar(0));
   const Mat3 rot = world_from_cam.RotationMatrix();
   tbb::parallel_for(0, h, [&](int y) {
     for (int x = 0; x < w; ++x) {
       const Vec3 ray_cam = model_.Unproject(Vec2(x, y));
-      const RayHit hit = scene_.Intersect(world_from_cam.translation(), rot * ray_cam, 0.0,
-                                          options_.max_range);
+      const RayHit hit = scene_.IntersectAt(t_ns, world_from_cam.translation(), rot * ray_cam,
+                                            0.0, options_.max_range);
       if (hit.hit) depth.at<float>(y, x) = static_cast<float>(hit.distance * ray_cam.z());
     }
   });

@@ -69,23 +69,28 @@ class CameraRenderer {
                  const CameraSimOptions& options,
                  const SceneLighting* lighting = nullptr);
 
-  // Renders the view of a camera at `world_from_cam` (z forward). `noise_seed`
-  // makes the pixel noise deterministic. No error sources.
-  cv::Mat Render(const SE3& world_from_cam, uint64_t noise_seed) const;
+  // Renders the view of a camera at `world_from_cam` (z forward) at time
+  // `t_ns` (where the scene's people are; irrelevant without people).
+  // `noise_seed` makes the pixel noise deterministic. No error sources.
+  cv::Mat Render(const SE3& world_from_cam, uint64_t noise_seed, TimestampNs t_ns = 0) const;
 
   // Renders one exposure with the error sources (options.errors_enabled must
   // be set): `world_from_cam` is the pose at the middle of the exposure.
+  // People are where they are at `t_ns` (the middle of the exposure).
   cv::Mat Render(const SE3& world_from_cam,
                  const CameraExposure& exposure,
-                 uint64_t noise_seed) const;
+                 uint64_t noise_seed,
+                 TimestampNs t_ns = 0) const;
 
   // The median radiance (albedo x shading x light x vignetting, before the
   // exposure) over a grid of every 32nd pixel: what the auto exposure meters.
-  double MeterRadiance(const SE3& world_from_cam, double time_s) const;
+  // People are where they are at `t_ns`.
+  double MeterRadiance(const SE3& world_from_cam, double time_s, TimestampNs t_ns = 0) const;
 
-  // Depth along the optical axis (z in the camera frame, m) per pixel centre;
-  // 0 where nothing was hit. Used by the RGB-D simulation and tests.
-  cv::Mat RenderDepth(const SE3& world_from_cam) const;
+  // Depth along the optical axis (z in the camera frame, m) per pixel centre
+  // at time `t_ns`; 0 where nothing was hit. Used by the RGB-D simulation and
+  // tests.
+  cv::Mat RenderDepth(const SE3& world_from_cam, TimestampNs t_ns = 0) const;
 
   const CameraModel& model() const { return model_; }
 

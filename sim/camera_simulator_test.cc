@@ -16,6 +16,13 @@ namespace lisfm {
 namespace sim {
 namespace {
 
+// The walk this test's data were made with: rests at the start, middle and end.
+WalkingOptions ThreeStopWalk() {
+  WalkingOptions options;
+  options.num_stops = 3;
+  return options;
+}
+
 class CameraSimulatorTest : public ::testing::Test {
  protected:
   void SetUp() override {
@@ -25,7 +32,7 @@ class CameraSimulatorTest : public ::testing::Test {
     rig_ = LoadHiltiCalibration(test::SharedData("hilti_exp4_small/calibration"));
     ASSERT_EQ(rig_.cameras.size(), 5u);
     scene_ = Scene::Generate(DefaultSceneOptions("office"));
-    walk_ = GenerateWalking(scene_->route(), 30.0, 0, 4, WalkingOptions(), nullptr);
+    walk_ = GenerateWalking(scene_->route(), 30.0, 0, 4, ThreeStopWalk(), nullptr);
     options_.noise_scale = 0;
   }
   SE3 WorldFromCam(int cam, TimestampNs t) const {

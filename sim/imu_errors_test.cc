@@ -128,7 +128,9 @@ TEST(ImuErrors, SpreadOverSeedsIsTheConfiguredSigma) {
 
 SplineTrajectory Walk(double duration) {
   const auto scene = Scene::Generate(DefaultSceneOptions("office"));
-  return GenerateWalking(scene->route(), duration, 0, 5, WalkingOptions(), nullptr);
+  WalkingOptions walk;
+  walk.num_stops = 3;  // the walk these bounds were set on
+  return GenerateWalking(scene->route(), duration, 0, 5, walk, nullptr);
 }
 
 // measured - bias = M * exact + white noise: least squares of the samples on

@@ -10,9 +10,16 @@ namespace lisfm {
 namespace sim {
 namespace {
 
+// The walk this test's data were made with: rests at the start, middle and end.
+WalkingOptions ThreeStopWalk() {
+  WalkingOptions options;
+  options.num_stops = 3;
+  return options;
+}
+
 SplineTrajectory Walk(double duration) {
   const auto scene = Scene::Generate(DefaultSceneOptions("office"));
-  return GenerateWalking(scene->route(), duration, 0, 5, WalkingOptions(), nullptr);
+  return GenerateWalking(scene->route(), duration, 0, 5, ThreeStopWalk(), nullptr);
 }
 
 // Cubic (4-point Lagrange) interpolation of the samples, 4th-order accurate.

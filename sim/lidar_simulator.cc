@@ -161,8 +161,8 @@ PointCloud LidarSimulator::SimulateScan(TimestampNs scan_start_ns, int64_t scan_
     }
     for (int c = 0; c < columns; ++c) {
       const double t_s = period_s * c / columns;
-      const SE3 world_from_lidar =
-          trajectory_.Pose(capture_start_ns + SecondsToNs(t_s)) * lidar_.imu_from_lidar;
+      const TimestampNs t_ns = capture_start_ns + SecondsToNs(t_s);
+      const SE3 world_from_lidar = trajectory_.Pose(t_ns) * lidar_.imu_from_lidar;
       const double az = 2 * M_PI * c / columns;
       const double cos_az = std::cos(az), sin_az = std::sin(az);
       const float origin[3] = {static_cast<float>(world_from_lidar.translation().x()),
@@ -182,7 +182,8 @@ PointCloud LidarSimulator::SimulateScan(TimestampNs scan_start_ns, int64_t scan_
           for (int j = 0; j < 3; ++j) dirs[k][j] = static_cast<float>(dirs_world[k][j]);
         }
         RayHit hits[16];
-        scene_.Intersect16(valid, origin, dirs, max_range + 1.f, /*coherent=*/false, hits);
+        scene_.Intersect16At(t_ns, valid, origin, dirs, max_range + 1.f, /*coherent=*/false,
+                             hits);
         for (int k = 0; k < 16; ++k) {
           if (!valid[k]) continue;
           add_point(hits[k], world_from_lidar, dirs_lidar[k], dirs_world[k], t_s, r0 + k);
@@ -197,11 +198,11 @@ PointCloud LidarSimulator::SimulateScan(TimestampNs scan_start_ns, int64_t scan_
     for (int i = 0; i < n; ++i) {
       const double t_s = i / options_.livox_rate;
       const Vec3 dir_lidar = RosetteDirection(scan_start_s + t_s, half_fov);
-      const SE3 world_from_lidar =
-          trajectory_.Pose(capture_start_ns + SecondsToNs(t_s)) * lidar_.imu_from_lidar;
+      const TimestampNs t_ns = capture_start_ns + SecondsToNs(t_s);
+      const SE3 world_from_lidar = trajectory_.Pose(t_ns) * lidar_.imu_from_lidar;
       const Vec3 dir_world = world_from_lidar.rotation() * dir_lidar;
-      const RayHit hit = scene_.Intersect(world_from_lidar.translation(), dir_world, 0.0,
-                                          lidar_.max_range + 1.0);
+      const RayHit hit = scene_.IntersectAt(t_ns, world_from_lidar.translation(), dir_world, 0.0,
+                                            lidar_.max_range + 1.0);
       add_point(hit, world_from_lidar, dir_lidar, dir_world, t_s, 0);
     }
   }
@@ -269,8 +270,8 @@ PointCloud LidarSimulator::SimulateScanWithErrors(TimestampNs scan_start_ns,
     }
     for (int c = 0; c < columns; ++c) {
       const double t_s = period_s * c / columns;
-      const SE3 world_from_lidar =
-          trajectory_.Pose(capture_start_ns + SecondsToNs(t_s)) * lidar_.imu_from_lidar;
+      const TimestampNs t_ns = capture_start_ns + SecondsToNs(t_s);
+      const SE3 world_from_lidar = trajectory_.Pose(t_ns) * lidar_.imu_from_lidar;
       const double az = 2 * M_PI * c / columns;
       const double cos_az = std::cos(az), sin_az = std::sin(az);
       const float origin[3] = {static_cast<float>(world_from_lidar.translation().x()),
@@ -290,7 +291,7 @@ PointCloud LidarSimulator::SimulateScanWithErrors(TimestampNs scan_start_ns,
           for (int j = 0; j < 3; ++j) dirs[k][j] = static_cast<float>(dirs_world[k][j]);
         }
         RayHit hits[16];
-        scene_.Intersect16(valid, origin, dirs, max_cast, /*coherent=*/false, hits);
+        scene_.Intersect16At(t_ns, valid, origin, dirs, max_cast, /*coherent=*/false, hits);
         for (int k = 0; k < 16 && r0 + k < rings; ++k) {
           record(hits[k], world_from_lidar, dirs_lidar[k], dirs_world[k], t_s, r0 + k,
                  &beams[static_cast<size_t>(c) * rings + r0 + k]);
@@ -305,11 +306,11 @@ PointCloud LidarSimulator::SimulateScanWithErrors(TimestampNs scan_start_ns,
     for (int i = 0; i < n; ++i) {
       const double t_s = i / options_.livox_rate;
       const Vec3 dir_lidar = RosetteDirection(scan_start_s + t_s, half_fov);
-      const SE3 world_from_lidar =
-          trajectory_.Pose(capture_start_ns + SecondsToNs(t_s)) * lidar_.imu_from_lidar;
+      const TimestampNs t_ns = capture_start_ns + SecondsToNs(t_s);
+      const SE3 world_from_lidar = trajectory_.Pose(t_ns) * lidar_.imu_from_lidar;
       const Vec3 dir_world = world_from_lidar.rotation() * dir_lidar;
       const RayHit hit =
-          scene_.Intersect(world_from_lidar.translation(), dir_world, 0.0, max_cast);
+          scene_.IntersectAt(t_ns, world_from_lidar.translation(), dir_world, 0.0, max_cast);
       record(hit, world_from_lidar, dir_lidar, dir_world, t_s, 0, &beams[i]);
     }
   }

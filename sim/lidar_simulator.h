@@ -1,6 +1,7 @@
 // LiDAR simulation by ray casting: every point is cast from the sensor pose at
 // its own time (world_from_imu(t) * imu_from_lidar), so motion distortion is
-// real. Points are returned in the LiDAR frame with the DESIGN.md time
+// real, and it sees the scene's people where they are at that time
+// (Scene::Intersect16At). Points are returned in the LiDAR frame with the DESIGN.md time
 // convention: the scan stamp is the time of the first returned point and each
 // point's `t` is seconds since that stamp, inside [0, 1 / scan_rate).
 // Stamps are on the LiDAR's clock: a point stamped t was captured at IMU time

@@ -9,6 +9,13 @@ namespace lisfm {
 namespace sim {
 namespace {
 
+// The walk this test's data were made with: rests at the start, middle and end.
+WalkingOptions ThreeStopWalk() {
+  WalkingOptions options;
+  options.num_stops = 3;
+  return options;
+}
+
 // Exact distance from p to triangle (a, b, c) (Ericson, Real-Time Collision
 // Detection, 5.1.5), used as an independent check of the ray casting.
 double PointTriangleDistance(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c) {
@@ -56,7 +63,7 @@ class LidarSimulatorTest : public ::testing::Test {
  protected:
   void SetUp() override {
     scene_ = Scene::Generate(DefaultSceneOptions("office"));
-    walk_ = GenerateWalking(scene_->route(), 30.0, 0, 2, WalkingOptions(), nullptr);
+    walk_ = GenerateWalking(scene_->route(), 30.0, 0, 2, ThreeStopWalk(), nullptr);
   }
   std::unique_ptr<Scene> scene_;
   SplineTrajectory walk_;

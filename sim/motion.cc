@@ -87,6 +87,7 @@ double Ramp(double x) {
 bool WalkingOptions::Check() const {
   CHECK_OPTION_GT(speed, 0.0);
   CHECK_OPTION_GE(stationary_s, 0.0);
+  CHECK_OPTION_MSG(num_stops, num_stops >= 2 && num_stops <= 1000, "in [2, 1000]");
   CHECK_OPTION_GT(step_frequency, 0.0);
   CHECK_OPTION_GE(sway_scale, 0.0);
   CHECK_OPTION_GT(knot_spacing, 0.0);
@@ -102,15 +103,20 @@ SplineTrajectory GenerateWalking(const WalkingRoute& route,
   THROW_CHECK_GT(duration_s, 0.0);
   THROW_CHECK_OPTIONS(options);
   const double dt = options.knot_spacing;
-  // Rests at start, middle and end; shorter for short sequences.
-  const double rest = std::min(options.stationary_s, duration_s / 6.0);
+  // Rests at the start, at the end and centred at equal steps between; shorter
+  // for short sequences (at most half of the time between rest centres).
+  const int n = options.num_stops;
+  const double rest = std::min(options.stationary_s, duration_s / (2.0 * n));
   const double ramp = std::min(1.2, rest);
-  const double mid = duration_s / 2.0;
   struct Rest {
     double t0, t1;
   };
-  const std::vector<Rest> rests = {
-      {-1.0, rest}, {mid - rest / 2, mid + rest / 2}, {duration_s - rest, duration_s + 1.0}};
+  std::vector<Rest> rests = {{-1.0, rest}};
+  for (int k = 1; k + 1 < n; ++k) {
+    const double centre = duration_s * k / (n - 1);
+    rests.push_back({centre - rest / 2, centre + rest / 2});
+  }
+  rests.push_back({duration_s - rest, duration_s + 1.0});
   // Walking factor w(t) in [0, 1]: 0 at rest, ramping over `ramp` seconds.
   auto walking = [&](double t) {
     double w = 1.0;

@@ -27,7 +27,10 @@ struct StationaryPeriod {
 
 struct WalkingOptions {
   double speed = 1.0;          // mean walking speed, m/s
-  double stationary_s = 3.0;   // length of each rest (start, middle, end), s
+  double stationary_s = 3.0;   // length of each rest, s
+  // Rests (each a HILTI-style control-point survey): the first at the start,
+  // the last at the end, the others centred at equal time steps between.
+  int num_stops = 6;
   double step_frequency = 1.8; // gait frequency, Hz (vertical bob; sway at half)
   double sway_scale = 1.0;     // multiplies bob/sway/roll/pitch/yaw-jitter amplitudes
   double knot_spacing = 0.1;   // spline knot spacing, s
@@ -35,8 +38,12 @@ struct WalkingOptions {
 };
 
 // Walks `route` (rounded corners, heading along the path, gait bob and sway,
-// smooth 1.2 s speed ramps) for `duration_s`, resting at the start, the
-// middle and the end. Deterministic for `seed`.
+// smooth 1.2 s speed ramps) for `duration_s` = T, resting N =
+// options.num_stops times for r = min(stationary_s, T / (2 N)) each: over
+// [0, r], over [T - r, T] and centred at k T / (N - 1) for k = 1 .. N - 2.
+// `stationary` receives the exactly constant part of each rest (2 knot
+// spacings shorter at each end inside the sequence; a rest whose constant
+// part is under 0.5 s gives none). Deterministic for `seed`.
 SplineTrajectory GenerateWalking(const WalkingRoute& route,
                                  double duration_s,
                                  TimestampNs start_ns,

@@ -62,12 +62,20 @@ TEST(SimOptionsCheck, Simulator) {
           {"camera_errors.read_noise_e", [](S* o) { o->camera_errors.read_noise_e = -1; }},
           {"materials.texture_poor_fraction",
            [](S* o) { o->materials.texture_poor_fraction = 1.5; }},
+          {"error_sources", [](S* o) { o->error_sources = "dynamics,rain"; }},
+          {"error_sources", [](S* o) { o->error_sources = "none,dynamics"; }},
+          {"walk.num_stops", [](S* o) { o->walk.num_stops = 1; }},
+          {"dynamics.people_per_100m", [](S* o) { o->dynamics.people_per_100m = -1.0; }},
       },
       valid);
   // "all" needs no particular sensor: it applies to the sensors there are.
   valid.lidars = "none";
   valid.camera_rate = 0;
   EXPECT_TRUE(valid.Check()) << LastOptionCheckFailure().ToString();
+  valid.error_sources = "dynamics";
+  EXPECT_TRUE(valid.Check());
+  EXPECT_TRUE(ErrorSourceEnabled(valid.error_sources, "dynamics"));
+  valid.error_sources = "all";
   valid.trajectory_path = "motion.txt";
   valid.duration = -1.0;  // all of the file
   EXPECT_TRUE(valid.Check());
@@ -167,6 +175,15 @@ TEST(SimOptionsCheck, SceneMotionAndTexture) {
       {"step_frequency", [](W* o) { o->step_frequency = 0.0; }},
       {"sway_scale", [](W* o) { o->sway_scale = -1.0; }},
       {"knot_spacing", [](W* o) { o->knot_spacing = 0.0; }},
+      {"num_stops", [](W* o) { o->num_stops = 1; }},
+      {"num_stops", [](W* o) { o->num_stops = 1001; }},
+  });
+  using D = DynamicsOptions;
+  ExpectCheckRejects<D>({
+      {"people_per_100m", [](D* o) { o->people_per_100m = -0.5; }},
+      {"people_per_100m", [](D* o) { o->people_per_100m = 101.0; }},
+      {"speed", [](D* o) { o->speed = 0.0; }},
+      {"speed", [](D* o) { o->speed = 3.5; }},
   });
   using T = TextureOptions;
   ExpectCheckRejects<T>(
@@ -188,6 +205,15 @@ TEST(SimOptionsCheck, SceneMotionAndTexture) {
       {"car_density", [](S* o) { o->car_density = 1.5; }},
       {"texture_scale", [](S* o) { o->texture_scale = 0.1; }},
   });
+  ExpectCheckRejects<S>(
+      {
+          {"length", [](S* o) { o->length = 50.0; }},
+          {"width", [](S* o) { o->width = 30.0; }},
+          {"height", [](S* o) { o->height = 2.5; }},
+          {"corridor_width", [](S* o) { o->corridor_width = 2.0; }},
+          {"room_depth", [](S* o) { o->room_depth = 9.0; }},
+      },
+      DefaultSceneOptions("site"));
   SceneOptions bad;
   bad.height = 30.0;
   try {

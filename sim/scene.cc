@@ -1,6 +1,8 @@
 #include "sim/scene.h"
 
 #include <algorithm>
+#include <array>
+#include <atomic>
 #include <cmath>
 #include <fstream>
 #include <random>
@@ -17,8 +19,9 @@ namespace lisfm {
 namespace sim {
 
 bool SceneOptions::Check() const {
-  CHECK_OPTION_MSG(type, type == "office" || type == "staircase" || type == "hall",
-                   "one of office, staircase, hall");
+  CHECK_OPTION_MSG(type,
+                   type == "office" || type == "staircase" || type == "hall" || type == "site",
+                   "one of office, staircase, hall, site");
   CHECK_OPTION_MSG(length, length >= 10.0 && length <= 1000.0, "in [10, 1000] m");
   // The staircase is a narrow shaft (two 1.3 m flights); rooms need 6 m.
   CHECK_OPTION_MSG(width, width >= (type == "staircase" ? 2.0 : 6.0) && width <= 1000.0,
@@ -38,6 +41,16 @@ bool SceneOptions::Check() const {
                    "in [4, 50] m");
   CHECK_OPTION_MSG(car_density, car_density >= 0.0 && car_density <= 1.0, "in [0, 1]");
   CHECK_OPTION_MSG(texture_scale, texture_scale > 0.1 && texture_scale < 10.0, "in (0.1, 10)");
+  if (type == "site") {
+    // The site's layout (hall lanes, stairs, route rooms) is drawn for these.
+    CHECK_OPTION_MSG(length, length >= 60.0, ">= 60 m for a site");
+    CHECK_OPTION_MSG(width, width >= 40.0, ">= 40 m for a site");
+    CHECK_OPTION_MSG(height, height >= 3.0 && height <= 5.0, "in [3, 5] m for a site");
+    CHECK_OPTION_MSG(corridor_width, corridor_width >= 2.4 && corridor_width <= 4.0,
+                     "in [2.4, 4] m for a site");
+    CHECK_OPTION_MSG(room_depth, room_depth >= 5.5 && room_depth <= 8.0,
+                     "in [5.5, 8] m for a site");
+  }
   return true;
 }
 
@@ -62,9 +75,16 @@ SceneOptions DefaultSceneOptions(const std::string& type) {
     o.width = 40.0;
     o.height = 3.0;
     return o;
+  } else if (type == "site") {
+    o.length = 64.0;
+    o.width = 40.0;
+    o.height = 3.5;  // storey height; the hall is two storeys high
+    o.corridor_width = 2.8;
+    o.room_depth = 6.0;
+    return o;
   }
   throw InputError("--scene", "value",
-                   "expected office, staircase, hall or a configs/sim_*.yaml path, found '" +
+                   "expected office, staircase, hall, site or a configs/sim_*.yaml path, found '" +
                        type + "'");
 }
 
@@ -118,13 +138,13 @@ SceneOptions ReadSceneOptions(const std::string& path) {
     throw InputError(path, "line " + std::to_string(e.mark.line + 1), e.msg);
   }
   if (!root.IsMap()) throw InputError(path, "line 1", "expected a YAML map of scene options");
-  if (!root["type"]) throw InputError(path, "field type", "expected office|staircase|hall");
+  if (!root["type"]) throw InputError(path, "field type", "expected office|staircase|hall|site");
   SceneOptions o;
   try {
     o = DefaultSceneOptions(root["type"].as<std::string>());
   } catch (const InputError&) {
     throw InputError(path, "field type",
-                     "expected office, staircase or hall, found '" +
+                     "expected office, staircase, hall or site, found '" +
                          root["type"].as<std::string>() + "'");
   }
   for (const auto& kv : root) {
@@ -254,6 +274,49 @@ class Builder {
     return std::uniform_real_distribution<double>(lo, hi)(rng_);
   }
 
+  // An opening in a wall: [a0, a1] along the wall, [z0, z1] in height.
+  struct Opening {
+    double a0, a1, z0, z1;
+  };
+  // An axis-aligned wall along x (at y = c) or along y (at x = c) over
+  // [from, to], z in [z0, z1], of `thickness`, with `openings` (doorways,
+  // windows; they may share a stretch of wall at different heights). Each
+  // stretch between opening edges is one box per solid height interval.
+  void AddWallWithOpenings(bool along_x, double c, double from, double to, double z0, double z1,
+                           double thickness, const std::vector<Opening>& openings,
+                           bool removable) {
+    std::vector<double> cuts = {from, to};
+    for (const Opening& o : openings) {
+      cuts.push_back(std::clamp(o.a0, from, to));
+      cuts.push_back(std::clamp(o.a1, from, to));
+    }
+    std::sort(cuts.begin(), cuts.end());
+    cuts.erase(std::unique(cuts.begin(), cuts.end()), cuts.end());
+    for (size_t i = 0; i + 1 < cuts.size(); ++i) {
+      const double a = cuts[i], b = cuts[i + 1];
+      if (b - a < 1e-3) continue;
+      std::vector<std::pair<double, double>> gaps;
+      for (const Opening& o : openings) {
+        if (o.a0 < b - 1e-9 && o.a1 > a + 1e-9) gaps.push_back({o.z0, o.z1});
+      }
+      std::sort(gaps.begin(), gaps.end());
+      double z = z0;
+      auto solid = [&](double zlo, double zhi) {
+        if (zhi - zlo < 1e-3) return;
+        if (along_x) {
+          AddBox({a, c - thickness / 2, zlo}, {b, c + thickness / 2, zhi}, removable);
+        } else {
+          AddBox({c - thickness / 2, a, zlo}, {c + thickness / 2, b, zhi}, removable);
+        }
+      };
+      for (const auto& [g0, g1] : gaps) {
+        solid(z, std::min(g0, z1));
+        z = std::max(z, g1);
+      }
+      solid(z, z1);
+    }
+  }
+
   // Drops removable parts closer than `clearance` (horizontally) to any of the
   // dense path points whose height lies within the part's z range (+ 0.5 m).
   void KeepClear(const std::vector<Vec3>& path, double clearance) {
@@ -308,7 +371,7 @@ class Builder {
 
 constexpr double kWall = 0.2;          // wall thickness, m
 constexpr double kDoorHeight = 2.1;    // m
-constexpr double kDeviceHeight = 1.4;  // handheld device above the floor, m
+constexpr double kDeviceHeight = kRouteDeviceHeight;  // handheld device above the floor, m
 
 void BuildShell(Builder* b, double x0, double y0, double x1, double y1, double z1) {
   b->AddBox({x0 - kWall, y0 - kWall, -kWall}, {x1 + kWall, y1 + kWall, 0.0}, false);  // floor
@@ -479,6 +542,225 @@ WalkingRoute BuildHall(const SceneOptions& o, Builder* b) {
   return route;
 }
 
+// Site: a construction-site floor (the HILTI 2022 construction sequences) of
+// L x W (>= 60 x 40 m), storey height h, corridor width c, room depth d:
+//  - a hall x in [0, X1] (X1 = L - 36 m), two storeys high: a pillar grid,
+//    roof beams, containers, pallets and stacks, a scaffold tower, and an
+//    open steel stair (20 steps) along its east wall up to a landing at h
+//    and a door into the wing's upper floor;
+//  - a two-storey wing x in [X1, L]. Ground floor: corridors A (y in [d,
+//    d + c]) and B (y in [W - d - c, W - d]) from the hall to the east wall,
+//    a cross corridor C (x in [X1 + 16, X1 + 16 + c]) joining them, rooms
+//    (one doorway each) between them and the outer walls, and an enclosed
+//    two-flight stairwell at A's east end. Upper floor: corridor A with rooms
+//    to the south, an open-plan floor with pillars and stacks to the north
+//    (wide openings in A's north wall, windows onto the hall).
+// Every box face is its own surface (materials can be assigned per wall,
+// floor and object). The route (closed, 290 m for the defaults): across the
+// hall into corridor B, a loop through a room, C, A back into the hall, up the
+// hall stair, the upper corridor with a loop through the open-plan floor back
+// onto it, down the stairwell, and A through the hall back to the start:
+// corridor A, the upper corridor and the start are revisited after loops.
+WalkingRoute BuildSite(const SceneOptions& o, Builder* b) {
+  const double L = o.length, W = o.width, h = o.height, c = o.corridor_width, d = o.room_depth;
+  const double g = kDeviceHeight, u = h + kDeviceHeight, m = h / 2 + kDeviceHeight;
+  constexpr double kSlab = 0.2;           // floor slab thickness, m
+  constexpr double kOpeningHeight = 2.6;  // corridor openings into the hall, m
+  const double X1 = L - 36.0;             // hall | wing wall
+  BuildShell(b, 0, 0, L, W, 2 * h);
+  const double a0 = d, a1 = d + c, yA = d + c / 2;          // corridor A
+  const double b0 = W - d - c, b1 = W - d, yB = W - d - c / 2;  // corridor B
+  const double xC = X1 + 16.0, xCc = xC + c / 2;            // corridor C
+  // East stairwell at A's east end: two flights of kFlight (10 steps each)
+  // in lanes either side of a spine at y = yA, a landing of kLanding at h/2.
+  constexpr double kFlight = 3.0, kLanding = 1.6;
+  const double sE = L - kFlight - kLanding;
+  const double lane = (c - 2 * kWall) / 2;
+  const double ya = a0 + kWall / 2 + lane / 2, yb = a1 - kWall / 2 - lane / 2;
+  // Hall stair: against the hall's east wall, climbing -y to a landing at h.
+  constexpr double kHallStairWidth = 1.5, kHallStairRun = 6.0;
+  const double hx0 = X1 - kWall / 2 - kHallStairWidth, hx1 = X1 - kWall / 2;
+  const double xS = (hx0 + hx1) / 2;
+  const double yTop = yA + 1.4, yBottom = yTop + kHallStairRun;
+  // The route loops through the north room with its door at xRn.
+  const double xRn = X1 + 10.5;
+  using Opening = Builder::Opening;
+
+  // ---- floors, stairs ----
+  b->AddBox({X1, 0, h - kSlab}, {L, a0, h}, false);  // upper floor, open over the stairwell
+  b->AddBox({X1, a0, h - kSlab}, {sE, a1, h}, false);
+  b->AddBox({X1, a1, h - kSlab}, {L, W, h}, false);
+  b->AddBox({hx0, yA - 1.4, h - kSlab}, {hx1, yTop, h}, false);  // hall stair landing
+  for (const double y : {yA - 1.4, yTop - 0.15}) {                 // its posts
+    b->AddBox({hx0, y, 0}, {hx0 + 0.15, y + 0.15, h - kSlab}, false);
+  }
+  constexpr int kHallSteps = 20;
+  const double hall_rise = h / kHallSteps, hall_tread = kHallStairRun / kHallSteps;
+  for (int i = 0; i < kHallSteps; ++i) {  // step 0 is the lowest
+    const double y0 = yBottom - (i + 1) * hall_tread, y1 = yBottom - i * hall_tread;
+    const double top = (i + 1) * hall_rise;
+    b->AddBox({hx0, y0, std::max(0.0, top - 0.3)}, {hx1, y1, top}, false);
+    b->AddBox({hx0, y0, top + 0.9}, {hx0 + 0.05, y1, top + 1.0}, false);  // handrail
+    if (i % 4 == 0) b->AddBox({hx0, y0, top}, {hx0 + 0.05, y0 + 0.05, top + 0.9}, false);
+  }
+  b->AddBox({hx0, yA - 1.4, h + 0.9}, {hx0 + 0.05, yTop, h + 1.0}, false);  // landing rails
+  b->AddBox({hx0, yA - 1.4, h + 0.9}, {hx1, yA - 1.35, h + 1.0}, false);
+  b->AddBox({hx0, yA - 1.4, h}, {hx0 + 0.05, yA - 1.35, h + 0.9}, false);
+  constexpr int kFlightSteps = 10;
+  const double rise = (h / 2) / kFlightSteps, tread = kFlight / kFlightSteps;
+  for (int i = 0; i < kFlightSteps; ++i) {
+    b->AddBox({sE + i * tread, a0, 0}, {sE + (i + 1) * tread, yA - kWall / 2, (i + 1) * rise},
+              false);
+    const double top = h / 2 + (i + 1) * rise;
+    b->AddBox({sE + kFlight - (i + 1) * tread, yA + kWall / 2, top - 0.35},
+              {sE + kFlight - i * tread, a1, top}, false);
+  }
+  b->AddBox({sE, yA - kWall / 2, 0}, {sE + kFlight, yA + kWall / 2, 2 * h - 0.8}, false);  // spine
+  b->AddBox({sE + kFlight, a0, h / 2 - kSlab}, {L, a1, h / 2}, false);                  // landing
+  b->AddBox({sE + kFlight, a0, 0}, {sE + kFlight + kWall, yA - kWall / 2, h / 2 - kSlab}, false);
+  b->AddBox({sE - 0.05, a0, h + 0.9}, {sE, yA - kWall / 2, h + 1.0}, false);  // guard rail
+  b->AddBox({sE - 0.05, a0, h}, {sE, a0 + 0.05, h + 0.9}, false);
+
+  // ---- walls ----
+  b->AddWallWithOpenings(false, X1, 0, W, 0, 2 * h, kWall,
+                         {{a0 + kWall / 2, a1 - kWall / 2, 0, kOpeningHeight},
+                          {b0 + kWall / 2, b1 - kWall / 2, 0, kOpeningHeight},
+                          {yA - 1.0, yA + 1.0, h, h + 2.2},
+                          {a1 + 4.5, a1 + 8.0, h + 0.9, h + 2.2},
+                          {a1 + 13.0, a1 + 16.5, h + 0.9, h + 2.2}},
+                         false);
+  // A row of rooms along x in [x0, x1] between the corridor wall at y = wall_y
+  // and y = far_y, z in [z0, z1]: 5..8 m rooms (and `fixed` ones: x0, x1,
+  // door centre), partitions between them, furniture; returns the doorways.
+  auto room_row = [&](double x0, double x1, double wall_y, double far_y, double z0, double z1,
+                      const std::vector<std::array<double, 3>>& fixed) {
+    std::vector<double> bounds = {x0}, doors;
+    auto fill = [&](double to) {  // rooms from bounds.back() to `to`
+      while (to - bounds.back() > 11.0) bounds.push_back(bounds.back() + b->Uniform(5.0, 8.0));
+      if (to - bounds.back() > 8.0) bounds.push_back((bounds.back() + to) / 2);
+      if (to - bounds.back() < 1.0 && bounds.size() > 1) {
+        bounds.back() = to;  // a sliver joins the room before it
+      } else if (to > bounds.back()) {
+        bounds.push_back(to);
+      }
+    };
+    std::vector<Opening> openings;
+    for (const auto& [lo, hi, door] : fixed) {
+      fill(lo);
+      bounds.push_back(hi);
+      openings.push_back({door - 0.7, door + 0.7, z0, z0 + kDoorHeight});
+    }
+    fill(x1);
+    const double ylo = std::min(wall_y, far_y), yhi = std::max(wall_y, far_y);
+    for (size_t i = 0; i + 1 < bounds.size(); ++i) {
+      const double r0 = bounds[i], r1 = bounds[i + 1];
+      if (i > 0) b->AddBox({r0 - kWall / 2, ylo, z0}, {r0 + kWall / 2, yhi, z1}, false);
+      bool is_fixed = false;
+      for (const auto& f : fixed) is_fixed |= std::abs(f[0] - r0) < 1e-9;
+      if (!is_fixed && r1 - r0 > 1.8) {
+        const double door = b->Uniform(r0 + 0.8, r1 - 0.8);
+        openings.push_back({door - 0.5, door + 0.5, z0, z0 + kDoorHeight});
+      }
+      const Box region(Vec3(r0 + 0.3, ylo + 0.3, 0), Vec3(r1 - 0.3, yhi - 0.3, 0));
+      const int n = static_cast<int>(o.furniture_per_room * (r1 - r0) * (yhi - ylo) / 30.0);
+      for (int k = 0; k < n; ++k) b->AddRandomFurniture(region, 0.5, 1.8, 1.8, z0);
+    }
+    return openings;
+  };
+  // Corridor A: south wall (both storeys) with the south rooms' doors.
+  std::vector<Opening> a_south = room_row(X1, sE, a0, 0, 0, h, {});
+  for (const Opening& door : room_row(X1, sE, a0, 0, h, 2 * h, {})) a_south.push_back(door);
+  b->AddWallWithOpenings(true, a0, X1, L, 0, 2 * h, kWall, a_south, false);
+  b->AddBox({sE - kWall / 2, 0, 0}, {sE + kWall / 2, a0, 2 * h}, false);  // behind the stairwell
+  // Corridor A: north wall with the middle rooms' doors, C, and the upper
+  // floor's openings onto the open-plan floor.
+  std::vector<Opening> a_north = room_row(X1, xC, a1, W / 2, 0, h, {});
+  a_north.push_back({xC + kWall / 2, xC + c - kWall / 2, 0, kOpeningHeight});
+  for (const double x : {X1 + 5.0, X1 + 12.5, X1 + 20.0, X1 + 27.0}) {
+    a_north.push_back({x - 1.2, x + 1.2, h, h + 2.5});
+  }
+  b->AddWallWithOpenings(true, a1, X1, L, 0, 2 * h, kWall, a_north, false);
+  // Corridor B (ground floor): rooms on both sides, C.
+  std::vector<Opening> b_south = room_row(X1, xC, b0, W / 2, 0, h, {});
+  b_south.push_back({xC + kWall / 2, xC + c - kWall / 2, 0, kOpeningHeight});
+  b->AddWallWithOpenings(true, b0, X1, L, 0, h, kWall, b_south, false);
+  b->AddWallWithOpenings(true, b1, X1, L, 0, h, kWall,
+                         room_row(X1, L, b1, W, 0, h, {{X1 + 8.5, X1 + 16.0, xRn}}), false);
+  // Corridor C and the two rooms east of it (doors onto C), middle partition.
+  b->AddWallWithOpenings(false, xC, a1, b0, 0, h, kWall, {}, false);
+  const double e0 = a1 + (W / 2 - a1) / 2, e1 = W / 2 + (b0 - W / 2) / 2;
+  b->AddWallWithOpenings(false, xC + c, a1, b0, 0, h, kWall,
+                         {{e0 - 0.6, e0 + 0.6, 0, kDoorHeight}, {e1 - 0.6, e1 + 0.6, 0, kDoorHeight}},
+                         false);
+  b->AddWallWithOpenings(true, W / 2, X1, xC, 0, h, kWall, {}, false);
+  b->AddWallWithOpenings(true, W / 2, xC + c, L, 0, h, kWall, {}, false);
+  for (const Box& room : {Box(Vec3(xC + c + 0.4, a1 + 0.4, 0), Vec3(L - 0.4, W / 2 - 0.4, 0)),
+                          Box(Vec3(xC + c + 0.4, W / 2 + 0.4, 0), Vec3(L - 0.4, b0 - 0.4, 0))}) {
+    const int n = static_cast<int>(o.furniture_per_room * (room.max() - room.min()).head<2>().prod() / 30.0);
+    for (int k = 0; k < n; ++k) b->AddRandomFurniture(room, 0.5, 1.8, 1.8, 0.0);
+  }
+  // Ducts and cable trays under the corridor ceilings.
+  b->AddBox({X1, a1 - 0.55, h - kSlab - 0.45}, {sE, a1 - 0.15, h - kSlab - 0.2}, false);
+  b->AddBox({X1, a1 - 0.55, 2 * h - 0.45}, {sE, a1 - 0.15, 2 * h - 0.2}, false);
+  b->AddBox({X1, b0 + 0.15, h - kSlab - 0.3}, {L, b0 + 0.5, h - kSlab - 0.25}, false);
+  b->AddBox({xC + 0.15, a1, h - kSlab - 0.3}, {xC + 0.5, b0, h - kSlab - 0.25}, false);
+
+  // ---- hall: pillars, roof beams, containers, a scaffold tower, stacks ----
+  const double s = o.pillar_spacing;
+  for (double x = s; x < X1 - 2.5; x += s) {
+    for (const double y : {W / 4, W / 2, 3 * W / 4}) {
+      b->AddBox({x - 0.3, y - 0.3, 0}, {x + 0.3, y + 0.3, 2 * h}, true);
+    }
+  }
+  for (const double y : {W / 4, W / 2, 3 * W / 4}) {
+    b->AddBox({0, y - 0.2, 2 * h - 0.7}, {X1 - kWall / 2, y + 0.2, 2 * h}, false);
+  }
+  for (int i = 0; i < 2; ++i) {
+    const double y = b->Uniform(1.0 + i * W / 2, W / 2 - 7.0 + i * W / 2);
+    b->AddBox({0.4, y, 0}, {2.8, y + 6.0, 2.6}, true);
+  }
+  {
+    const double x = b->Uniform(3.0, X1 - 20.0), y = b->Uniform(3.0, W - 6.0);
+    for (const double dx : {0.0, 2.45}) {
+      for (const double dy : {0.0, 1.45}) {
+        b->AddBox({x + dx, y + dy, 0}, {x + dx + 0.05, y + dy + 0.05, 4.0}, true);
+      }
+    }
+    for (const double z : {2.0, 4.0}) b->AddBox({x, y, z - 0.05}, {x + 2.5, y + 1.5, z}, true);
+  }
+  const Box hall(Vec3(0.5, 0.5, 0), Vec3(X1 - 2.0, W - 0.5, 0));
+  const int hall_stacks = static_cast<int>(o.furniture_per_room * X1 * W / 80.0);
+  for (int k = 0; k < hall_stacks; ++k) b->AddRandomFurniture(hall, 0.8, 2.4, 2.2, 0.0);
+
+  // ---- upper open-plan floor: pillars and stacks ----
+  for (double x = X1 + 8.0; x < L - 1.0; x += 8.0) {
+    for (double y = a1 + 4.2; y < W - 1.0; y += 8.0) {
+      b->AddBox({x - 0.25, y - 0.25, h}, {x + 0.25, y + 0.25, 2 * h}, true);
+    }
+  }
+  const Box open_floor(Vec3(X1 + 0.5, a1 + 0.5, 0), Vec3(L - 0.5, W - 0.5, 0));
+  const int floor_stacks = static_cast<int>(o.furniture_per_room * (L - X1) * (W - a1) / 100.0);
+  for (int k = 0; k < floor_stacks; ++k) b->AddRandomFurniture(open_floor, 0.6, 2.0, 1.5, h);
+
+  // ---- route ----
+  WalkingRoute route;
+  route.closed = true;
+  route.waypoints = {
+      // Across the hall into corridor B, a loop through a north room, C.
+      {4.0, yA, g}, {4.0, yB, g}, {xRn, yB, g}, {xRn, b1 + 2.2, g}, {xRn + 3.3, b1 + 2.2, g},
+      {xRn + 3.3, b1 + 4.0, g}, {xRn, b1 + 4.0, g}, {xRn, yB, g}, {xCc, yB, g}, {xCc, yA, g},
+      // Corridor A back into the hall, up the hall stair.
+      {X1 - 8.0, yA, g}, {X1 - 8.0, yBottom + 2.7, g}, {xS, yBottom + 2.7, g}, {xS, yBottom, g},
+      {xS, yTop, u}, {xS, yA, u},
+      // The upper corridor, a loop through the open-plan floor back onto it.
+      {X1 + 12.5, yA, u}, {X1 + 12.5, a1 + 8.2, u}, {X1 + 5.0, a1 + 8.2, u}, {X1 + 5.0, yA, u},
+      // Down the stairwell, corridor A back through the hall to the start.
+      {sE - 3.0, yA, u}, {sE - 1.0, yb, u}, {sE, yb, u}, {sE + kFlight, yb, m},
+      {sE + kFlight + kLanding / 2, yb, m}, {sE + kFlight + kLanding / 2, ya, m},
+      {sE + kFlight, ya, m}, {sE, ya, g}, {sE - 1.0, ya, g}, {sE - 3.0, yA, g}};
+  return route;
+}
+
 }  // namespace
 
 struct Scene::EmbreeState {
@@ -503,6 +785,8 @@ std::unique_ptr<Scene> Scene::Generate(const SceneOptions& options,
     scene->route_ = BuildOffice(options, &builder);
   } else if (options.type == "staircase") {
     scene->route_ = BuildStaircase(options, &builder);
+  } else if (options.type == "site") {
+    scene->route_ = BuildSite(options, &builder);
   } else {
     scene->route_ = BuildHall(options, &builder);
   }
@@ -636,6 +920,128 @@ void Scene::Intersect16(const int valid[16],
     }
     hits[i].normal = n;
     hits[i].surface_id = triangles_[rh.hit.primID[i]].surface_id;
+  }
+}
+
+namespace {
+
+// Source of Scene::people_key_ values (0 = no people set).
+std::atomic<uint64_t> next_people_key{0};
+
+// The people of one scene posed at one time, kept per thread by
+// Scene::IntersectPeople: bounding-sphere centres at once, full poses on the
+// first ray that reaches a person's bounding sphere.
+struct PeopleAtTime {
+  uint64_t key = 0;
+  TimestampNs t_ns = 0;
+  std::vector<Eigen::Vector3f> centres;
+  std::vector<char> posed;
+  std::vector<PersonPose> poses;
+};
+
+}  // namespace
+
+void Scene::SetPeople(std::vector<WalkingPerson> people) {
+  people_ = std::move(people);
+  people_key_ = next_people_key.fetch_add(1) + 1;
+}
+
+RayHit Scene::IntersectAt(TimestampNs t_ns,
+                          const Vec3& origin,
+                          const Vec3& direction,
+                          double min_range,
+                          double max_range) const {
+  RayHit hit = Intersect(origin, direction, min_range, max_range);
+  if (people_.empty()) return hit;
+  const int valid = 1;
+  const float o[3] = {static_cast<float>(origin.x()), static_cast<float>(origin.y()),
+                      static_cast<float>(origin.z())};
+  const float d[1][3] = {{static_cast<float>(direction.x()), static_cast<float>(direction.y()),
+                          static_cast<float>(direction.z())}};
+  IntersectPeople(t_ns, 1, &valid, o, d, static_cast<float>(min_range),
+                  static_cast<float>(max_range), &hit);
+  return hit;
+}
+
+void Scene::Intersect16At(TimestampNs t_ns,
+                          const int valid[16],
+                          const float origin[3],
+                          const float directions[16][3],
+                          float max_range,
+                          bool coherent,
+                          RayHit hits[16]) const {
+  Intersect16(valid, origin, directions, max_range, coherent, hits);
+  if (people_.empty()) return;
+  IntersectPeople(t_ns, 16, valid, origin, directions, 0.f, max_range, hits);
+}
+
+void Scene::IntersectPeople(TimestampNs t_ns,
+                            int num_rays,
+                            const int* valid,
+                            const float origin[3],
+                            const float (*directions)[3],
+                            float min_range,
+                            float max_range,
+                            RayHit* hits) const {
+  thread_local PeopleAtTime cache;
+  const size_t n = people_.size();
+  if (cache.key != people_key_ || cache.t_ns != t_ns || cache.centres.size() != n) {
+    cache.key = people_key_;
+    cache.t_ns = t_ns;
+    cache.centres.resize(n);
+    cache.posed.assign(n, 0);
+    cache.poses.resize(n);
+    for (size_t p = 0; p < n; ++p) cache.centres[p] = people_[p].BoundCentre(t_ns);
+  }
+  const Eigen::Vector3f o(origin[0], origin[1], origin[2]);
+  const float radius = PersonPose().radius;
+  // People beyond every ray's current hit are hidden (most of them, behind walls).
+  float reach = 0.f;
+  for (int k = 0; k < num_rays; ++k) {
+    if (valid[k]) reach = std::max(reach, hits[k].hit ? hits[k].distance : max_range);
+  }
+  for (size_t p = 0; p < n; ++p) {
+    const Eigen::Vector3f oc = cache.centres[p] - o;
+    const float q = oc.squaredNorm() - radius * radius;
+    if (q > 0.f && oc.squaredNorm() > (reach + radius) * (reach + radius)) continue;
+    for (int k = 0; k < num_rays; ++k) {
+      if (!valid[k]) continue;
+      const Eigen::Vector3f d(directions[k][0], directions[k][1], directions[k][2]);
+      const float limit = hits[k].hit ? hits[k].distance : max_range;
+      // Entry into the bounding sphere (0 when the origin is inside it).
+      float entry = 0.f;
+      if (q > 0.f) {
+        const float b = oc.dot(d);
+        const float disc = b * b - q;
+        if (b <= 0.f || disc < 0.f) continue;
+        entry = b - std::sqrt(disc);
+        if (entry > limit) continue;
+      }
+      if (!cache.posed[p]) {
+        cache.poses[p] = people_[p].Pose(t_ns);
+        cache.posed[p] = 1;
+      }
+      // Tested from the sphere entry point (short distances keep float precision).
+      const Eigen::Vector3f start = o + entry * d;
+      float best = limit;
+      int best_part = -1;
+      Eigen::Vector3f best_normal;
+      for (int part = 0; part < kBodyParts; ++part) {
+        Eigen::Vector3f normal;
+        const float t = entry + IntersectBodyPart(cache.poses[p].parts[part], start, d, &normal);
+        if (t >= min_range && t < best) {
+          best = t;
+          best_part = part;
+          best_normal = normal;
+        }
+      }
+      if (best_part < 0) continue;
+      hits[k].hit = true;
+      hits[k].distance = best;
+      hits[k].normal = best_normal;
+      hits[k].surface_id = static_cast<uint32_t>(num_surfaces_ + kPersonSurfaces * p +
+                                                 cache.poses[p].parts[best_part].surface);
+    }
   }
 }
 

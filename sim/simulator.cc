@@ -35,10 +35,6 @@ namespace sim {
 namespace {
 
 
-// HILTI 2022 pole tip in the IMU frame (evaluation-2022, REFERENCES.md sec. 7):
-// control points are world_from_imu * kPoleTipInImu, as core/evaluation scores them.
-const Vec3 kPoleTipInImu(0.059, -0.00855, 0.1964);
-
 // Fastest lossless PNG: zlib level 0 (stored blocks). Measured on a noisy
 // 720x540 render: 4.5 ms and 390 KB per image, against 9.2 ms / 287 KB for
 // level 1 Huffman-only and 13.9 ms / 308 KB for level 1 default; sensor noise
@@ -155,6 +151,13 @@ void CheckErrorSourcesHaveSensors(const SimulatorOptions& options, const Rig& ri
     if (t == "camera" && rig.cameras.empty()) {
       throw UsageError("--error_sources camera: the rig has no cameras");
     }
+    if (t == "dynamics" && rig.lidars.empty() &&
+        (rig.cameras.empty() || options.camera_rate <= 0) && !options.rgbd) {
+      throw UsageError(
+          "--error_sources dynamics: the simulated rig has no LiDAR, camera or RGB-D "
+          "camera to see the people (--lidars none, no cameras or --camera_rate 0, "
+          "--rgbd 0)");
+    }
   }
 }
 
@@ -177,7 +180,7 @@ std::string DescribeCalibrationErrors(const Rig& rig, const CalibrationErrors& e
 }  // namespace
 
 const std::vector<std::string>& ErrorSourceNames() {
-  static const std::vector<std::string> kNames = {"calibration", "imu", "lidar", "camera"};
+  static const std::vector<std::string> kNames = {"calibration", "imu", "lidar", "camera", "dynamics"};
   return kNames;
 }
 
@@ -187,6 +190,19 @@ bool ErrorSourceEnabled(const std::string& error_sources, const std::string& sou
     if (t == "all" || t == source) return true;
   }
   return false;
+}
+
+std::vector<ControlPoint> SurveyControlPoints(const SplineTrajectory& trajectory,
+                                              const std::vector<StationaryPeriod>& stationary,
+                                              TimestampNs start_ns,
+                                              TimestampNs end_ns) {
+  std::vector<ControlPoint> points;
+  for (const StationaryPeriod& p : stationary) {
+    if (p.end_ns > end_ns || p.start_ns < start_ns) continue;
+    const TimestampNs t = p.start_ns + (p.end_ns - p.start_ns) / 2;
+    points.push_back({t, trajectory.Pose(t) * kPoleTipInImu});
+  }
+  return points;
 }
 
 bool SimulatorOptions::Check() const {
@@ -210,6 +226,8 @@ bool SimulatorOptions::Check() const {
   CHECK_OPTION_NESTED(lidar_errors);
   CHECK_OPTION_NESTED(camera_errors);
   CHECK_OPTION_NESTED(materials);
+  CHECK_OPTION_NESTED(walk);
+  CHECK_OPTION_NESTED(dynamics);
   return true;
 }
 
@@ -269,6 +287,8 @@ SimulationSummary Simulate(const SimulatorOptions& options,
       options.noise_scale > 0 && ErrorSourceEnabled(options.error_sources, "lidar");
   const bool camera_errors =
       options.noise_scale > 0 && ErrorSourceEnabled(options.error_sources, "camera");
+  const bool dynamics_on =
+      options.noise_scale > 0 && ErrorSourceEnabled(options.error_sources, "dynamics");
 
   // ---- scene and motion ----
   LogStage("scene and motion");
@@ -279,9 +299,9 @@ SimulationSummary Simulate(const SimulatorOptions& options,
   std::unique_ptr<Scene> scene;
   TimestampNs start_ns = 0, end_ns = 0;
   if (!options.trajectory_path.empty()) {
-    if (scene_options.type == "staircase") {
-      throw UsageError("--trajectory_path needs --scene office or hall (the staircase is "
-                       "built around its own route)");
+    if (scene_options.type == "staircase" || scene_options.type == "site") {
+      throw UsageError("--trajectory_path needs --scene office or hall (the " +
+                       scene_options.type + " is built around its own route)");
     }
     const Trajectory samples = ReadTum(options.trajectory_path);
     if (samples.size() < 10) {
@@ -319,13 +339,29 @@ SimulationSummary Simulate(const SimulatorOptions& options,
     scene = Scene::Generate(scene_options);
     start_ns = kDefaultStartNs;
     trajectory = GenerateWalking(scene->route(), options.duration, start_ns,
-                                 static_cast<uint32_t>(options.seed), WalkingOptions(),
+                                 static_cast<uint32_t>(options.seed), options.walk,
                                  &stationary);
     end_ns = start_ns + SecondsToNs(options.duration);
   }
   scene->AssignMaterials(options.materials.texture_poor_fraction);
+  if (dynamics_on) {
+    // People walk the device's route; with real motion, the recorded path
+    // (sampled every metre, walked out and back).
+    WalkingRoute people_route = scene->route();
+    if (people_route.waypoints.empty()) {
+      for (TimestampNs t = start_ns; t <= end_ns; t += 50000000) {
+        const Vec3 p = trajectory.Pose(t).translation();
+        if (people_route.waypoints.empty() || (p - people_route.waypoints.back()).norm() >= 1.0) {
+          people_route.waypoints.push_back(p);
+        }
+      }
+    }
+    scene->SetPeople(GeneratePeople(*scene, people_route, options.dynamics, start_ns,
+                                    static_cast<uint32_t>(scene_options.seed)));
+  }
   summary.scene_type = scene_options.type;
   summary.num_triangles = scene->triangles().size();
+  summary.num_people = scene->people().size();
   summary.duration_s = NsToSeconds(end_ns - start_ns);
   const TextureOptions texture{static_cast<uint32_t>(scene_options.seed),
                                static_cast<float>(scene_options.texture_scale)};
@@ -366,15 +402,29 @@ SimulationSummary Simulate(const SimulatorOptions& options,
     std::ostringstream cp;
     cp << "# timestamp_s x y z qx qy qz qw: HILTI-style control points, the pole tip "
           "world_from_imu * (0.059, -0.00855, 0.1964) in the middle of each rest\n";
-    for (const StationaryPeriod& p : stationary) {
-      if (p.end_ns > end_ns || p.start_ns < start_ns) continue;
-      const TimestampNs t = p.start_ns + (p.end_ns - p.start_ns) / 2;
-      const Vec3 tip = trajectory.Pose(t) * kPoleTipInImu;
-      cp << FormatNsAsSeconds(t) << std::setprecision(17) << " " << tip.x() << " " << tip.y()
-         << " " << tip.z() << " 0 0 0 1\n";
+    for (const ControlPoint& p : SurveyControlPoints(trajectory, stationary, start_ns, end_ns)) {
+      cp << FormatNsAsSeconds(p.t_ns) << std::setprecision(17) << " " << p.position.x() << " "
+         << p.position.y() << " " << p.position.z() << " 0 0 0 1\n";
       ++summary.num_control_points;
     }
     WriteFileAtomically(JoinPaths(temp, "controlpoints.txt"), cp.str());
+  }
+  if (!scene->people().empty()) {
+    // The people's tracks at 10 Hz: feet position and heading.
+    std::ostringstream tracks;
+    tracks << std::setprecision(10)
+           << "#timestamp [ns],person,x [m],y [m],z [m],yaw [rad]   (feet, scene frame)\n";
+    for (TimestampNs t = start_ns; t <= end_ns; t += 100000000) {
+      for (size_t i = 0; i < scene->people().size(); ++i) {
+        Vec3 feet;
+        double yaw;
+        scene->people()[i].Locate(t, &feet, &yaw);
+        tracks << t << "," << i << "," << feet.x() << "," << feet.y() << "," << feet.z() << ","
+               << yaw << "\n";
+      }
+    }
+    CreateDirs(JoinPaths(temp, "truth"));
+    WriteFileAtomically(JoinPaths(temp, "truth/people.csv"), tracks.str());
   }
 
   // ---- IMU ----
@@ -520,7 +570,7 @@ SimulationSummary Simulate(const SimulatorOptions& options,
         const TimestampNs t =
             start_ns + SecondsToNs(j * ae_dt) + calibration.cameras[c].time_offset_ns;
         metered[i] = renderers[c]->MeterRadiance(
-            trajectory.Pose(t) * true_rig.cameras[c].cam_from_imu.Inverse(), j * ae_dt);
+            trajectory.Pose(t) * true_rig.cameras[c].cam_from_imu.Inverse(), j * ae_dt, t);
       });
       for (size_t c = 0; c < num_cams; ++c) {
         AutoExposure ae(options.camera_errors);
@@ -555,9 +605,9 @@ SimulationSummary Simulate(const SimulatorOptions& options,
         const TimestampNs half = SecondsToNs(0.5 * exposure.setting.exposure_s);
         exposure.world_from_cam_start = trajectory.Pose(capture_ns - half) * imu_from_true_cam;
         exposure.world_from_cam_end = trajectory.Pose(capture_ns + half) * imu_from_true_cam;
-        image = renderers[c]->Render(world_from_cam, exposure, noise_seed);
+        image = renderers[c]->Render(world_from_cam, exposure, noise_seed, capture_ns);
       } else {
-        image = renderers[c]->Render(world_from_cam, noise_seed);
+        image = renderers[c]->Render(world_from_cam, noise_seed, capture_ns);
       }
       const double c1 = ThreadCpuSeconds();
       const std::string path = JoinPaths(
@@ -608,8 +658,8 @@ SimulationSummary Simulate(const SimulatorOptions& options,
     const std::vector<int> png_params = kPngParams;
     tbb::parallel_for(size_t{0}, times.size(), [&](size_t i) {
       const SE3 world_from_cam = trajectory.Pose(times[i]) * cam_from_imu.Inverse();
-      const cv::Mat rgb = renderer.Render(world_from_cam, 77 + i);
-      const cv::Mat depth = renderer.RenderDepth(world_from_cam);
+      const cv::Mat rgb = renderer.Render(world_from_cam, 77 + i, times[i]);
+      const cv::Mat depth = renderer.RenderDepth(world_from_cam, times[i]);
       // Depth noise of a structured-light sensor (Nguyen et al. 2012):
       // sigma_z = 1.2 mm + 1.9 mm * (z - 0.4)^2; holes below 0.4 m, beyond
       // 6 m, at 1 % random pixels and along depth discontinuities.

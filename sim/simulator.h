@@ -22,10 +22,13 @@
 //  - lidar (sim/lidar_simulator.h): incidence-dependent range noise, mixed
 //    pixels at depth edges, material intensity, dropouts and maximum ranges,
 //    acting on the points cast at the true time with the true extrinsic.
-//  - camera (sim/camera_errors.h): auto-exposure and gain, vignetting, sensor
-//    noise, motion blur over the exposure (poses at the true capture times
+//  - camera (sim/camera_errors.h): auto-exposure and gain, sensor noise,
+//    motion blur over the exposure (poses at the true capture times
 //    with the true extrinsic), room and time lighting; texture-poor surfaces
 //    through the materials (sim/materials.h).
+//  - dynamics (sim/people.h): people walk the scene's route; every LiDAR ray
+//    and camera frame sees them at its own (true) time; truth/people.csv has
+//    their tracks.
 // A source named explicitly for a sensor the recording does not have is an
 // error.
 //
@@ -47,6 +50,8 @@
 #include "sim/imu_errors.h"
 #include "sim/lidar_simulator.h"
 #include "sim/materials.h"
+#include "sim/motion.h"
+#include "sim/people.h"
 
 namespace lisfm {
 namespace sim {
@@ -54,7 +59,7 @@ namespace sim {
 constexpr TimestampNs kDefaultStartNs = 1700000000LL * kNsPerSecond;
 
 struct SimulatorOptions {
-  std::string scene = "office";   // office | staircase | hall | path to configs/sim_*.yaml
+  std::string scene = "office";   // office | staircase | hall | site | configs/sim_*.yaml path
   std::string trajectory_path;    // optional TUM file of real motion (world_from_imu)
   double duration = 60.0;         // s; with a TUM file: at most its length (<= 0: all of it)
   double camera_rate = 2.0;       // Hz, rig frames per second (0 = no cameras)
@@ -73,6 +78,8 @@ struct SimulatorOptions {
   LidarErrorOptions lidar_errors;    // the `lidar` source (sim/lidar_simulator.h)
   CameraErrorOptions camera_errors;  // the `camera` source (sim/camera_errors.h)
   MaterialOptions materials;         // surface materials (sim/materials.h)
+  WalkingOptions walk;               // generated motion (not used with trajectory_path)
+  DynamicsOptions dynamics;          // the `dynamics` source: people walking through the scene
 
   bool Check() const;
 };
@@ -82,6 +89,20 @@ const std::vector<std::string>& ErrorSourceNames();
 // True when `source` (one of ErrorSourceNames()) is named in `error_sources`
 // or it is "all". Throws InternalError for an unknown `source`.
 bool ErrorSourceEnabled(const std::string& error_sources, const std::string& source);
+
+// A HILTI-style control point: the pole tip world_from_imu * kPoleTipInImu
+// (HILTI 2022 evaluation, REFERENCES.md sec. 7) at the middle of a rest.
+inline const Vec3 kPoleTipInImu(0.059, -0.00855, 0.1964);
+struct ControlPoint {
+  TimestampNs t_ns = 0;
+  Vec3 position = Vec3::Zero();  // scene frame, m
+};
+// One control point per stationary period inside [start_ns, end_ns], at its
+// middle, in time order.
+std::vector<ControlPoint> SurveyControlPoints(const SplineTrajectory& trajectory,
+                                              const std::vector<StationaryPeriod>& stationary,
+                                              TimestampNs start_ns,
+                                              TimestampNs end_ns);
 
 struct SimulationSummary {
   std::string scene_type;
@@ -94,6 +115,7 @@ struct SimulationSummary {
   size_t num_rgbd = 0;
   size_t num_control_points = 0;
   size_t num_triangles = 0;
+  size_t num_people = 0;
   double seconds_scene = 0, seconds_imu = 0, seconds_lidar = 0, seconds_cameras = 0,
          seconds_total = 0;
   // Breakdown in CPU seconds summed over threads (thread CPU clocks, so other

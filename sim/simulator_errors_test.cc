@@ -64,7 +64,7 @@ World RebuildWorld(const SimulatorOptions& options) {
                                      options.duration,
                                      kDefaultStartNs,
                                      static_cast<uint32_t>(options.seed),
-                                     WalkingOptions(),
+                                     options.walk,
                                      nullptr);
   world.texture = {static_cast<uint32_t>(scene_options.seed),
                    static_cast<float>(scene_options.texture_scale)};
@@ -135,6 +135,7 @@ class SimulatorErrorsTest : public ::testing::Test {
     options_->camera_rate = 1.0;
     options_->lidars = "spinning";
     options_->seed = 7;
+    options_->walk.num_stops = 3;  // the walk these checks were set on
     options_->error_sources = "calibration,imu";
     CalibrationErrorOptions& c = options_->calibration_error;
     c.lidar_translation_sigma_m = c.camera_translation_sigma_m = 0.02;

@@ -50,6 +50,8 @@ TEST(Simulate, WritesACompleteSequenceFolder) {
   test::TempDir dir;
   SimulatorOptions options;
   options.duration = 8.0;  // long enough for three rests (control points)
+  options.walk.num_stops = 3;
+  options.error_sources = "none";
   options.camera_rate = 0.5;
   options.lidars = "spinning,livox";
   options.rgbd = true;
@@ -172,6 +174,44 @@ TEST(Simulate, CameraSourceWithoutCamerasIsAnError) {
   EXPECT_TRUE(fs::exists(dir.File("seq/lidar0/data.csv")));
 }
 
+// Error source `dynamics`: people change what the LiDAR sees, never the
+// motion or the IMU; their tracks are in truth/people.csv (10 Hz rows per
+// person). With --error_sources none or --noise_scale 0 there are none.
+TEST(Simulate, PeopleAppearInTheScansOnlyWithDynamics) {
+  test::TempDir dir;
+  SimulatorOptions options;
+  options.duration = 4.0;
+  options.camera_rate = 0.0;
+  options.error_sources = "dynamics";
+  options.output_path = dir.File("people");
+  const SimulationSummary with = Simulate(options, TestRig());
+  options.error_sources = "none";
+  options.output_path = dir.File("none");
+  const SimulationSummary without = Simulate(options, TestRig());
+  options.error_sources = "all";
+  options.noise_scale = 0;
+  options.output_path = dir.File("exact");
+  EXPECT_EQ(Simulate(options, TestRig()).num_people, 0u);
+  EXPECT_EQ(without.num_people, 0u);
+  ASSERT_EQ(with.num_people, 2u);  // 2 per 100 m of the 76 m office loop
+  EXPECT_FALSE(FileExists(dir.File("none/truth/people.csv")));
+  EXPECT_EQ(CountDataLines(dir.File("people/truth/people.csv")), 41 * 2);
+  for (const std::string file : {"imu0/data.csv", "groundtruth.txt", "controlpoints.txt",
+                                 "lidar0/data.csv"}) {
+    EXPECT_EQ(ReadFile(dir.File("people/" + file)), ReadFile(dir.File("none/" + file))) << file;
+  }
+  int differing = 0;
+  LineReader reader(dir.File("none/lidar0/data.csv"));
+  std::string line;
+  while (reader.Next(&line)) {
+    if (line.empty() || line[0] == '#') continue;
+    const std::string name = SplitString(line, ",")[1];
+    differing += ReadFile(dir.File("people/lidar0/data/" + name)) !=
+                 ReadFile(dir.File("none/lidar0/data/" + name));
+  }
+  EXPECT_GT(differing, 10);
+}
+
 // Real motion: the ground truth is the TUM trajectory, translated into the scene.
 TEST(Simulate, FollowsARealTumTrajectory) {
   LISFM_REQUIRE_SHARED_DATA(
@@ -184,6 +224,7 @@ TEST(Simulate, FollowsARealTumTrajectory) {
   options.scene = "hall";
   options.duration = 20.0;
   options.camera_rate = 0.0;
+  options.error_sources = "none";
   options.output_path = dir.File("real");
   Simulate(options, TestRig());
   const Trajectory input = ReadTum(tum);

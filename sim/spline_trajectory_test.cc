@@ -10,6 +10,13 @@ namespace lisfm {
 namespace sim {
 namespace {
 
+// The walk this test's data were made with: rests at the start, middle and end.
+WalkingOptions ThreeStopWalk() {
+  WalkingOptions options;
+  options.num_stops = 3;
+  return options;
+}
+
 SplineTrajectory RandomSpline() {
   std::vector<Quat> rotations;
   std::vector<Vec3> positions;
@@ -62,7 +69,7 @@ TEST(GenerateWalking, RestsAreExactAndSpeedIsWalking) {
   const auto scene = Scene::Generate(DefaultSceneOptions("office"));
   std::vector<StationaryPeriod> rests;
   const SplineTrajectory walk =
-      GenerateWalking(scene->route(), 40.0, 0, 3, WalkingOptions(), &rests);
+      GenerateWalking(scene->route(), 40.0, 0, 3, ThreeStopWalk(), &rests);
   ASSERT_EQ(rests.size(), 3u);
   for (const StationaryPeriod& r : rests) {
     const TrajectorySample s0 = walk.Evaluate(r.start_ns);

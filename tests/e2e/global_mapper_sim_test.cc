@@ -26,6 +26,13 @@
 namespace lisfm {
 namespace {
 
+// The walk this test's data were made with: rests at the start, middle and end.
+sim::WalkingOptions ThreeStopWalk() {
+  sim::WalkingOptions options;
+  options.num_stops = 3;
+  return options;
+}
+
 constexpr double kDegToRad = M_PI / 180.0;
 
 TEST(GlobalMapperSim, RigWithPriorsAndConstraintsOnRenderedImages) {
@@ -38,7 +45,7 @@ TEST(GlobalMapperSim, RigWithPriorsAndConstraintsOnRenderedImages) {
   const Rig rig = LoadHiltiCalibration(calibration);
   const auto scene = sim::Scene::Generate(sim::DefaultSceneOptions("office"));
   const sim::SplineTrajectory walk =
-      sim::GenerateWalking(scene->route(), 40.0, 0, 1, sim::WalkingOptions(), nullptr);
+      sim::GenerateWalking(scene->route(), 40.0, 0, 1, ThreeStopWalk(), nullptr);
   test::TempDir dir;
   const std::vector<int> cams = {0, 1, 3};
   const int frames = 8;  // 0.4 s apart while walking: 24 images

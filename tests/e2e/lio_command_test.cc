@@ -22,6 +22,7 @@ class LioCommandTest : public ::testing::Test {
     sim::SimulatorOptions options;
     options.duration = 4.0;
     options.camera_rate = 0;
+    options.walk.num_stops = 3;
     options.error_sources = "none";
     options.output_path = dir_->File("seq");
     sim::Simulate(options, sim::PrepareRig(Rig(), "spinning"));

@@ -124,6 +124,17 @@ TEST(OptionRanges, Simulate) {
       "--lidars spinning,velodyne is out of range: must be a comma list of "
       "spinning, livox, none");
   ExpectHelpContains("simulate", "(=2, in [0, 100]) rig frames per second");
+  ExpectUsageError(simulate + " --error_sources dynamics,rain",
+                   "--error_sources dynamics,rain is out of range: must be all, none, or a "
+                   "comma list of calibration, imu, lidar, camera, dynamics");
+  ExpectUsageError(simulate + " --Walk.num_stops 1",
+                   "--Walk.num_stops 1 is out of range: must be in [2, 1000]");
+  ExpectUsageError(simulate + " --Dynamics.people_per_100m -1",
+                   "--Dynamics.people_per_100m -1 is out of range: must be in [0, 100]");
+  // Every error source's size is documented with its source.
+  ExpectHelpContains("simulate", "--Dynamics.people_per_100m");
+  ExpectHelpContains("simulate", "Bohannon 1997");
+  ExpectHelpContains("simulate", "office | staircase | hall | site");
 }
 
 TEST(OptionRanges, GlobalMapper) {

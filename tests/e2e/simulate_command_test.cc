@@ -1,6 +1,8 @@
 // `lisfm simulate` on bad configuration: one clear error, non-zero exit, no output.
 #include <filesystem>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include <gtest/gtest.h>
 
@@ -35,6 +37,23 @@ TEST(SimulateCommand, BadConfigurationFailsClearly) {
   EXPECT_NE(test::RunCommand(bin + " simulate --trajectory_path " + dir.File("bad.txt") +
                                  " --scene hall" + common, &out), 0);
   EXPECT_NE(out.find("line 3"), std::string::npos) << out;
+  // Error sources: an unknown token, a negative size, too few stops, a site
+  // driven by a recorded trajectory (the site is built around its own route).
+  const std::vector<std::pair<std::string, std::string>> bad = {
+      {" --error_sources dynamics,rain", "error_sources"},
+      {" --error_sources none,dynamics", "error_sources"},
+      {" --Dynamics.people_per_100m -1", "Dynamics.people_per_100m"},
+      {" --Dynamics.speed 0", "Dynamics.speed"},
+      {" --Walk.num_stops 1", "Walk.num_stops"},
+      {" --scene site --trajectory_path " + dir.File("bad.txt"), "site"},
+  };
+  for (const auto& [args, name] : bad) {
+    EXPECT_NE(test::RunCommand(bin + " simulate" + args + common, &out), 0) << args;
+    EXPECT_NE(out.find(name), std::string::npos) << args << ": " << out;
+    if (name != "site") {  // option values are refused before any work
+      EXPECT_EQ(out.find("scene and motion"), std::string::npos) << args << ": " << out;
+    }
+  }
   EXPECT_FALSE(fs::exists(dir.File("o")));
 }
 
@@ -60,12 +79,24 @@ TEST(SimulateCommand, BadErrorSourceConfigurationFailsClearly) {
       2);
   EXPECT_NE(out.find("no LiDAR and no camera"), std::string::npos) << out;
   EXPECT_EQ(out.find("scene and motion"), std::string::npos) << out;  // before any work
+  EXPECT_EQ(
+      test::RunCommand(bin + " simulate --error_sources dynamics --lidars none" + common, &out),
+      2);
+  EXPECT_NE(out.find("--error_sources dynamics: the simulated rig has no LiDAR, camera or RGB-D"),
+            std::string::npos)
+      << out;
+  EXPECT_EQ(out.find("scene and motion"), std::string::npos) << out;
   EXPECT_FALSE(fs::exists(dir.File("o")));
   // -h documents every source and cites where its size comes from.
   EXPECT_EQ(test::RunCommand(bin + " simulate -h", &out), 0);
   for (const char* text : {"--error_sources",
                            "--CalibrationError.camera_time_offset_sigma_s",
                            "--ImuError.gyro_scale_sigma_percent",
+                           "--LidarErrors.incidence_noise_gain",
+                           "--CameraErrors.motion_blur",
+                           "--Materials.texture_poor_fraction",
+                           "--Dynamics.people_per_100m",
+                           "--Walk.num_stops",
                            "BMI085 datasheet",
                            "HILTI 2022"}) {
     EXPECT_NE(out.find(text), std::string::npos) << text;

@@ -36,6 +36,7 @@ Sequence SimulateSequence(const test::TempDir& dir,
   options.lidars = lidars;
   options.noise_scale = noise_scale;
   options.seed = 3;
+  options.walk.num_stops = 3;      // the data these bounds were set on
   options.error_sources = "none";  // white noise and bias random walk only
   options.output_path = dir.File(name);
   Rig rig;  // the simulator's default rig: the HILTI 2022 LiDAR mounting
@@ -341,6 +342,7 @@ Sequence SimulateStaircase(const test::TempDir& dir, double duration) {
   options.duration = duration;
   options.camera_rate = 0;
   options.seed = 3;
+  options.walk.num_stops = 3;  // the data these bounds were set on
   options.error_sources = "none";
   options.output_path = dir.File("stairs");
   sim::Simulate(options, sim::PrepareRig(Rig(), "spinning"));

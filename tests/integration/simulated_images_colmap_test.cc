@@ -21,6 +21,13 @@ namespace lisfm {
 namespace sim {
 namespace {
 
+// The walk this test's data were made with: rests at the start, middle and end.
+WalkingOptions ThreeStopWalk() {
+  WalkingOptions options;
+  options.num_stops = 3;
+  return options;
+}
+
 TEST(ColmapEndToEnd, StockColmapReconstructsRenderedImages) {
   LISFM_REQUIRE_SHARED_DATA("hilti_exp4_small/calibration");
   std::string out;
@@ -30,7 +37,7 @@ TEST(ColmapEndToEnd, StockColmapReconstructsRenderedImages) {
   const Rig rig = LoadHiltiCalibration(test::SharedData("hilti_exp4_small/calibration"));
   const auto scene = Scene::Generate(DefaultSceneOptions("office"));
   const SplineTrajectory walk =
-      GenerateWalking(scene->route(), 40.0, 0, 1, WalkingOptions(), nullptr);
+      GenerateWalking(scene->route(), 40.0, 0, 1, ThreeStopWalk(), nullptr);
   test::TempDir dir;
   const std::vector<int> cams = {0, 1, 3};
   const int frames = 8;  // 8 rig frames x 3 cameras = 24 images, 0.4 s apart while walking
