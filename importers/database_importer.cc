@@ -562,6 +562,7 @@ struct ImageSource {
   std::string path;
   std::string index_file;  // for errors
   int index_line = 0;
+  bool stamp_on_imu_clock = false;  // HILTI GTSFM keyframes: the stamp is the pose time
 };
 
 std::string JsonNumber(double v) { return fmt::format("{:.6g}", v); }
@@ -658,6 +659,7 @@ DatabaseImporterSummary RunDatabaseImporter(const DatabaseImporterInput& input,
         const std::string jpg = JoinPaths(images_dir, std::to_string(num_cams * f + k) + ".jpg");
         s.path = JoinPaths(image_root, s.name);
         s.index_file = jpg;
+        s.stamp_on_imu_clock = true;
         CreateDirs(JoinPaths(image_root, rig.cameras[k].name + "/data"));
         std::error_code ec;
         std::filesystem::create_symlink(std::filesystem::absolute(jpg), s.path, ec);
@@ -693,7 +695,8 @@ DatabaseImporterSummary RunDatabaseImporter(const DatabaseImporterInput& input,
     image.path = s.path;
     image.camera_index = s.camera_index;
     image.stamp_ns = s.stamp_ns;
-    image.t_imu_ns = s.stamp_ns + SecondsToNs(camera.timeshift_cam_imu_s);
+    image.t_imu_ns =
+        s.stamp_on_imu_clock ? s.stamp_ns : s.stamp_ns + SecondsToNs(camera.timeshift_cam_imu_s);
     const TimestampNs t_clamped =
         std::clamp(image.t_imu_ns, trajectory.start_ns(), trajectory.end_ns());
     if (std::llabs(t_clamped - image.t_imu_ns) > max_extra) {

@@ -93,7 +93,7 @@ struct ImporterPriorOptions {
   double min_position_sigma_m = 0.01;       // m, floor of the prior position sigma per axis
   double drift_m_per_s = 0.02;              // m/s, sigma growth away from a keyframe
   double drift_rad_per_s = 0.002;           // rad/s, rotation sigma growth (constraints)
-  double max_extrapolation_s = 0.0;         // s, images this far outside the trajectory keep a prior
+  double max_extrapolation_s = 0.01;        // s, images this far outside the trajectory keep its end pose
   double max_frame_time_offset_s = 0.6;     // s, a constraint's keyframe to its rig frame at most
   bool Check() const;
 };

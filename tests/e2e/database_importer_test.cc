@@ -292,5 +292,66 @@ TEST_F(DatabaseImporterTest, ExistingOutputIsRefusedAndKept) {
   EXPECT_EQ(ReadFile(o + "/database.db"), "a user's database");
 }
 
+// The HILTI 2022 extract GTSFM ships: real images, the real rig, FAST-LIO2
+// poses as priors and GTSFM's constraints; stock COLMAP features and matches on
+// the pair list, then global_mapper registers every real image with the rig.
+TEST(DatabaseImporterHilti, RealImagesRegisterWithTheRealRig) {
+  LISFM_REQUIRE_SHARED_DATA("hilti_exp4_small/images/0.jpg");
+  std::string out;
+  if (test::RunCommand("colmap help > /dev/null 2>&1", &out) != 0) {
+    GTEST_SKIP() << "colmap binary not found";
+  }
+  test::TempDir dir;
+  const std::string o = dir.File("import");
+  ASSERT_EQ(test::RunCommand(test::LisfmBinary() +
+                                 " database_importer --input_type hilti_gtsfm --input_path " +
+                                 test::SharedData("hilti_exp4_small") + " --output_path " + o +
+                                 " 2>&1",
+                             &out),
+            0)
+      << out;
+  // 16 images: 3 keyframes of 5 cameras (15.jpg has no complete keyframe).
+  {
+    const colmap::Database db(o + "/database.db", colmap::Database::OpenMode::kReadOnly);
+    const auto images = db.ReadAllImages();
+    ASSERT_EQ(images.size(), 15u);
+    for (const auto& image : images) {
+      EXPECT_TRUE(image.has_prior_position) << image.name;
+      EXPECT_TRUE(FileExists(o + "/images/" + image.name)) << image.name;
+    }
+  }
+  EXPECT_EQ(ReadLidarConstraints(o + "/constraints.txt").size(), 3u);
+  const std::string env = "QT_QPA_PLATFORM=offscreen ";
+  const std::string db = dir.File("work.db");
+  fs::copy_file(o + "/database.db", db);
+  ASSERT_EQ(test::RunCommand(env + "colmap feature_extractor --database_path " + db +
+                                 " --image_path " + o + "/images --image_list_path " + o +
+                                 "/image_list.txt --SiftExtraction.use_gpu 0"
+                                 " --SiftExtraction.num_threads 2"
+                                 " --SiftExtraction.max_num_features 2048"
+                                 " --SiftExtraction.first_octave 0 2>&1",
+                             &out),
+            0)
+      << out;
+  ASSERT_EQ(test::RunCommand(env + "colmap matches_importer --database_path " + db +
+                                 " --match_list_path " + o + "/pairs.txt --match_type pairs"
+                                 " --SiftMatching.use_gpu 0 --SiftMatching.num_threads 2 2>&1",
+                             &out),
+            0)
+      << out;
+  ASSERT_EQ(test::RunCommand(test::LisfmBinary() + " global_mapper --database_path " + db +
+                                 " --image_path " + o + "/images --output_path " +
+                                 dir.File("sparse") + " --rig_path " + o +
+                                 "/rig.yaml --lidar_constraints_path " + o +
+                                 "/constraints.txt 2>&1",
+                             &out),
+            0)
+      << out;
+  EXPECT_EQ(out.find("match no pair of frames"), std::string::npos) << out;
+  const colmap::Reconstruction model = colmap::ReadModel(dir.File("sparse/0"));
+  EXPECT_EQ(model.NumImages(), 15u) << out;
+  EXPECT_GT(model.NumPoints3D(), 30u);
+}
+
 }  // namespace
 }  // namespace lisfm
