@@ -1,5 +1,9 @@
 #include "importers/database_importer.h"
 
+#include <fmt/format.h>
+#include <tbb/global_control.h>
+#include <tbb/parallel_for.h>
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -8,10 +12,6 @@
 #include <limits>
 #include <set>
 #include <sstream>
-
-#include <fmt/format.h>
-#include <tbb/global_control.h>
-#include <tbb/parallel_for.h>
 
 #include "colmap_ext/io/camera_models.h"
 #include "colmap_ext/io/database.h"
@@ -69,8 +69,10 @@ std::optional<SE3> InterpolatePoseSe3(const Trajectory& trajectory, TimestampNs 
   if (poses.empty() || t_ns < poses.front().t_ns || t_ns > poses.back().t_ns) {
     return std::nullopt;
   }
-  auto it = std::lower_bound(poses.begin(), poses.end(), t_ns,
-                             [](const StampedPose& p, TimestampNs t) { return p.t_ns < t; });
+  auto it =
+      std::lower_bound(poses.begin(), poses.end(), t_ns, [](const StampedPose& p, TimestampNs t) {
+        return p.t_ns < t;
+      });
   if (it->t_ns == t_ns) return it->pose;
   const StampedPose& b = *it;
   const StampedPose& a = *std::prev(it);
@@ -231,8 +233,10 @@ std::map<std::pair<int, int>, PairVotes> ComputeCovisibility(
       const SE3 cam_from_world = images[image].world_from_cam.Inverse();
       d.cam_from_world.push_back(cam_from_world);
       d.zbuffers.push_back(BuildZBuffer(rig.cameras[images[image].camera_index].model,
-                                        cam_from_world, d.sparse_world,
-                                        options.zbuffer_cell_px, options.point_footprint_m));
+                                        cam_from_world,
+                                        d.sparse_world,
+                                        options.zbuffer_cell_px,
+                                        options.point_footprint_m));
     }
   });
 
@@ -244,14 +248,15 @@ std::map<std::pair<int, int>, PairVotes> ComputeCovisibility(
     const float front = d.zbuffers[u].At(pixel);
     if (front < 0.f) return false;
     const double range = x.norm();
-    return range <= front * (1.0 + options.occlusion_tolerance_ratio) +
-                        options.occlusion_tolerance_m;
+    return range <=
+           front * (1.0 + options.occlusion_tolerance_ratio) + options.occlusion_tolerance_m;
   };
 
   // Votes per scan pair, then merged in pair order.
   using Votes = std::map<std::pair<int, int>, int64_t>;
   std::vector<Votes> pair_votes(scan_pairs.size());
-  const float max_sq = static_cast<float>(options.max_point_distance_m * options.max_point_distance_m);
+  const float max_sq =
+      static_cast<float>(options.max_point_distance_m * options.max_point_distance_m);
   tbb::parallel_for(size_t(0), scan_pairs.size(), [&](size_t q) {
     const ScanData& di = data[scan_pairs[q].first];
     const ScanData& dj = data[scan_pairs[q].second];
@@ -310,8 +315,8 @@ std::vector<std::pair<int, int>> OverlappingRigCameras(const Rig& rig,
         if (!ca.model.Unproject(pixel, &ray)) continue;
         ++total;
         Vec2 pb;
-        if (cb.model.Project(b_from_a * (ray.normalized() * options.view_overlap_depth_m), &pb,
-                             true)) {
+        if (cb.model.Project(
+                b_from_a * (ray.normalized() * options.view_overlap_depth_m), &pb, true)) {
           ++seen;
         }
       }
@@ -320,10 +325,8 @@ std::vector<std::pair<int, int>> OverlappingRigCameras(const Rig& rig,
   };
   for (int a = 0; a < n; ++a) {
     for (int b = a + 1; b < n; ++b) {
-      if (std::max(overlap(a, b), overlap(b, a)) >= options.min_view_overlap &&
-          options.min_view_overlap > 0) {
-        result.emplace_back(a, b);
-      } else if (options.min_view_overlap == 0) {
+      if (options.min_view_overlap == 0 ||
+          std::max(overlap(a, b), overlap(b, a)) >= options.min_view_overlap) {
         result.emplace_back(a, b);
       }
     }
@@ -403,8 +406,9 @@ std::vector<SelectedPair> SelectPairs(const Rig& rig,
     std::vector<std::vector<int>> by_camera(rig.cameras.size());
     for (int a = 0; a < n; ++a) by_camera[images[a].camera_index].push_back(a);
     for (auto& list : by_camera) {
-      std::sort(list.begin(), list.end(),
-                [&](int x, int y) { return images[x].t_imu_ns < images[y].t_imu_ns; });
+      std::sort(list.begin(), list.end(), [&](int x, int y) {
+        return images[x].t_imu_ns < images[y].t_imu_ns;
+      });
       for (size_t u = 0; u < list.size(); ++u) {
         for (size_t v = u + 1;
              v < list.size() && v <= u + static_cast<size_t>(options.num_temporal_neighbors);
@@ -429,12 +433,14 @@ std::vector<LidarConstraintRecord> ReexpressConstraints(
     size_t* num_dropped) {
   std::vector<int> order(frames.size());
   for (size_t f = 0; f < frames.size(); ++f) order[f] = static_cast<int>(f);
-  std::sort(order.begin(), order.end(),
-            [&](int x, int y) { return frames[x].t_imu_ns < frames[y].t_imu_ns; });
+  std::sort(order.begin(), order.end(), [&](int x, int y) {
+    return frames[x].t_imu_ns < frames[y].t_imu_ns;
+  });
   const int64_t max_dt = SecondsToNs(options.max_frame_time_offset_s);
   auto nearest = [&](TimestampNs t) {
-    auto it = std::lower_bound(order.begin(), order.end(), t,
-                               [&](int f, TimestampNs s) { return frames[f].t_imu_ns < s; });
+    auto it = std::lower_bound(order.begin(), order.end(), t, [&](int f, TimestampNs s) {
+      return frames[f].t_imu_ns < s;
+    });
     int best = -1;
     int64_t best_dt = max_dt;
     for (auto c : {it, it == order.begin() ? order.end() : std::prev(it)}) {
@@ -477,8 +483,8 @@ std::vector<LidarConstraintRecord> ReexpressConstraints(
     // A T Exp(xi) B = (A T B) Exp(Ad(B^-1) xi).
     const Mat6 ad = j_from_b.Inverse().Adjoint();
     out.covariance = ad * record.covariance * ad.transpose();
-    const double dt = NsToSeconds(std::llabs(frames[a].t_imu_ns - t_i) +
-                                  std::llabs(frames[b].t_imu_ns - t_j));
+    const double dt =
+        NsToSeconds(std::llabs(frames[a].t_imu_ns - t_i) + std::llabs(frames[b].t_imu_ns - t_j));
     const double sr = options.drift_rad_per_s * dt, st = options.drift_m_per_s * dt;
     out.covariance.diagonal().head<3>().array() += sr * sr;
     out.covariance.diagonal().tail<3>().array() += st * st;
@@ -516,8 +522,7 @@ std::pair<int, int> ReadImageSize(const std::string& path) {
       unsigned char len_bytes[2];
       if (!in.read(reinterpret_cast<char*>(len_bytes), 2)) break;
       const int length = (len_bytes[0] << 8) | len_bytes[1];
-      if (marker >= 0xc0 && marker <= 0xcf && marker != 0xc4 && marker != 0xc8 &&
-          marker != 0xcc) {
+      if (marker >= 0xc0 && marker <= 0xcf && marker != 0xc4 && marker != 0xc8 && marker != 0xcc) {
         unsigned char sof[5];
         if (!in.read(reinterpret_cast<char*>(sof), 5)) break;
         return {(sof[3] << 8) | sof[4], (sof[1] << 8) | sof[2]};
@@ -547,8 +552,10 @@ Mat3 CentreCovariance(const SE3& world_from_imu, const SE3& imu_from_cam, const 
 
 const KeyframeCovariance& NearestCovariance(const std::vector<KeyframeCovariance>& covs,
                                             TimestampNs t) {
-  auto it = std::lower_bound(covs.begin(), covs.end(), t,
-                             [](const KeyframeCovariance& c, TimestampNs s) { return c.t_ns < s; });
+  auto it =
+      std::lower_bound(covs.begin(), covs.end(), t, [](const KeyframeCovariance& c, TimestampNs s) {
+        return c.t_ns < s;
+      });
   if (it == covs.end()) return covs.back();
   if (it == covs.begin()) return *it;
   return (t - std::prev(it)->t_ns <= it->t_ns - t) ? *std::prev(it) : *it;
@@ -584,7 +591,7 @@ DatabaseImporterSummary RunDatabaseImporter(const DatabaseImporterInput& input,
   Rig rig;
   std::vector<ImageSource> sources;
   std::string image_root = input.image_path.empty() ? input.input_path : input.image_path;
-  Trajectory trajectory;              // world_from_imu
+  Trajectory trajectory;               // world_from_imu
   std::vector<StampedPose> keyframes;  // world_from_imu at the keyframe stamps
   std::vector<KeyframeCovariance> keyframe_covariances;
   std::vector<LidarConstraintRecord> constraints;
@@ -609,9 +616,10 @@ DatabaseImporterSummary RunDatabaseImporter(const DatabaseImporterInput& input,
         s.index_file = index;
         s.index_line = line;
         if (!FileExists(s.path)) {
-          throw InputError(index, fmt::format("record {}", line),
-                           fmt::format("image {} not found under --image_path {}", s.name,
-                                       image_root));
+          throw InputError(
+              index,
+              fmt::format("record {}", line),
+              fmt::format("image {} not found under --image_path {}", s.name, image_root));
         }
         sources.push_back(s);
       }
@@ -639,7 +647,8 @@ DatabaseImporterSummary RunDatabaseImporter(const DatabaseImporterInput& input,
     const int num_frames = num_images / num_cams;
     if (num_frames == 0) throw InputError(images_dir, "", "no images 0.jpg, 1.jpg, ...");
     if (num_frames > static_cast<int>(odom.size())) {
-      throw InputError(JoinPaths(input.input_path, "lidar/fastlio2_odom.txt"), "",
+      throw InputError(JoinPaths(input.input_path, "lidar/fastlio2_odom.txt"),
+                       "",
                        fmt::format("{} poses for {} keyframes", odom.size(), num_frames));
     }
     image_root = JoinPaths(output_dir, "images");
@@ -672,8 +681,8 @@ DatabaseImporterSummary RunDatabaseImporter(const DatabaseImporterInput& input,
   }
   if (trajectory.empty()) throw InputError(input.pose_slam_path, "", "empty trajectory");
   if (keyframe_covariances.empty()) {
-    throw InputError(JoinPaths(input.pose_slam_path, "keyframe_covariances.txt"), "",
-                     "no keyframe covariances");
+    throw InputError(
+        JoinPaths(input.pose_slam_path, "keyframe_covariances.txt"), "", "no keyframe covariances");
   }
   if (sources.empty()) throw InputError(input.input_path, "", "no camera images");
   summary.num_constraints_read = constraints.size();
@@ -686,9 +695,14 @@ DatabaseImporterSummary RunDatabaseImporter(const DatabaseImporterInput& input,
     const RigCamera& camera = rig.cameras[s.camera_index];
     const auto [w, h] = ReadImageSize(s.path);
     if (w != camera.model.width || h != camera.model.height) {
-      throw InputError(s.path, "",
-                       fmt::format("image size {}x{}, but rig.yaml {}.resolution is [{}, {}]", w,
-                                   h, camera.name, camera.model.width, camera.model.height));
+      throw InputError(s.path,
+                       "",
+                       fmt::format("image size {}x{}, but rig.yaml {}.resolution is [{}, {}]",
+                                   w,
+                                   h,
+                                   camera.name,
+                                   camera.model.width,
+                                   camera.model.height));
     }
     ImporterImage image;
     image.name = s.name;
@@ -715,16 +729,22 @@ DatabaseImporterSummary RunDatabaseImporter(const DatabaseImporterInput& input,
     images.push_back(image);
   }
   for (const auto& [file, n] : skipped_per_index) {
-    LogWarning("database_importer: {}: {} images outside the pose_slam trajectory [{}, {}] left "
-               "out (--DatabaseImporter.max_extrapolation_s {})",
-               file, n, trajectory.start_ns(), trajectory.end_ns(),
-               options.priors.max_extrapolation_s);
+    LogWarning(
+        "database_importer: {}: {} images outside the pose_slam trajectory [{}, {}] left "
+        "out (--DatabaseImporter.max_extrapolation_s {})",
+        file,
+        n,
+        trajectory.start_ns(),
+        trajectory.end_ns(),
+        options.priors.max_extrapolation_s);
     summary.num_images_skipped += n;
   }
   if (images.empty()) {
-    throw InputError(JoinPaths(input.pose_slam_path, "trajectory.txt"), "",
+    throw InputError(JoinPaths(input.pose_slam_path, "trajectory.txt"),
+                     "",
                      fmt::format("no camera time lies within the trajectory [{}, {}] ns",
-                                 trajectory.start_ns(), trajectory.end_ns()));
+                                 trajectory.start_ns(),
+                                 trajectory.end_ns()));
   }
   // Rig frames by name stamp; the frame time is that of its lowest-index camera.
   std::vector<ImporterFrame> frames;
@@ -765,9 +785,10 @@ DatabaseImporterSummary RunDatabaseImporter(const DatabaseImporterInput& input,
   std::vector<KeyframeScan> scans;
   bool fallback = constraints.empty() || hilti;
   if (constraints.empty()) {
-    LogWarning("database_importer: {} holds no constraints: pairs from the pose priors instead "
-               "of LiDAR co-visibility",
-               constraints_path);
+    LogWarning(
+        "database_importer: {} holds no constraints: pairs from the pose priors instead "
+        "of LiDAR co-visibility",
+        constraints_path);
   }
   if (!fallback) {
     std::map<TimestampNs, int> scan_of_stamp;
@@ -776,18 +797,18 @@ DatabaseImporterSummary RunDatabaseImporter(const DatabaseImporterInput& input,
     auto scan_index = [&](TimestampNs t) {
       auto it = scan_of_stamp.find(t);
       if (it != scan_of_stamp.end()) return it->second;
-      const std::string path = JoinPaths(JoinPaths(input.lio_path, "keyframes"),
-                                         std::to_string(t) + ".pcd");
+      const std::string path =
+          JoinPaths(JoinPaths(input.lio_path, "keyframes"), std::to_string(t) + ".pcd");
       if (!FileExists(path)) {
-        throw InputError(constraints_path, "",
-                         fmt::format("keyframe {} has no scan {} (--lio_path)", t, path));
+        throw InputError(
+            constraints_path, "", fmt::format("keyframe {} has no scan {} (--lio_path)", t, path));
       }
       KeyframeScan scan;
       scan.t_ns = t;
       const auto pose = InterpolatePoseSe3(keyframe_trajectory, t);
       if (!pose) {
-        throw InputError(constraints_path, "",
-                         fmt::format("keyframe {} is outside keyframes.txt", t));
+        throw InputError(
+            constraints_path, "", fmt::format("keyframe {} is outside keyframes.txt", t));
       }
       scan.world_from_imu = *pose;
       scan.points_in_imu = FinitePointsOf(ReadPointCloud(path));
@@ -839,9 +860,12 @@ DatabaseImporterSummary RunDatabaseImporter(const DatabaseImporterInput& input,
   summary.num_constraints_written = frame_constraints.size();
   summary.num_constraints_dropped = dropped;
   if (dropped > 0) {
-    LogWarning("database_importer: {} of {} constraints have no pair of distinct rig frames "
-               "within {} s of their keyframes; left out",
-               dropped, constraints.size(), options.priors.max_frame_time_offset_s);
+    LogWarning(
+        "database_importer: {} of {} constraints have no pair of distinct rig frames "
+        "within {} s of their keyframes; left out",
+        dropped,
+        constraints.size(),
+        options.priors.max_frame_time_offset_s);
   }
   summary.seconds_covisibility = SecondsSince(covis_start);
 
@@ -850,12 +874,11 @@ DatabaseImporterSummary RunDatabaseImporter(const DatabaseImporterInput& input,
   std::vector<colmap::camera_t> camera_ids(rig.cameras.size());
   std::vector<colmap::image_t> image_ids(images.size());
   {
-    colmap::Database db(JoinPaths(output_dir, "database.db"),
-                        colmap::Database::OpenMode::kCreate);
+    colmap::Database db(JoinPaths(output_dir, "database.db"), colmap::Database::OpenMode::kCreate);
     colmap::DatabaseTransaction transaction(&db);
     for (size_t k = 0; k < rig.cameras.size(); ++k) {
-      colmap::Camera camera = colmap::CameraFromCameraModel(
-          rig.cameras[k].model, static_cast<colmap::camera_t>(k + 1));
+      colmap::Camera camera =
+          colmap::CameraFromCameraModel(rig.cameras[k].model, static_cast<colmap::camera_t>(k + 1));
       camera_ids[k] = db.WriteCamera(camera, /*use_camera_id=*/true);
     }
     // Image ids in (frame stamp, camera) order.
@@ -886,8 +909,9 @@ DatabaseImporterSummary RunDatabaseImporter(const DatabaseImporterInput& input,
   {
     std::vector<size_t> order(images.size());
     for (size_t u = 0; u < images.size(); ++u) order[u] = u;
-    std::sort(order.begin(), order.end(),
-              [&](size_t x, size_t y) { return image_ids[x] < image_ids[y]; });
+    std::sort(order.begin(), order.end(), [&](size_t x, size_t y) {
+      return image_ids[x] < image_ids[y];
+    });
     std::string list;
     for (size_t u : order) list += images[u].name + "\n";
     WriteFileAtomically(JoinPaths(output_dir, "image_list.txt"), list);
@@ -906,13 +930,18 @@ DatabaseImporterSummary RunDatabaseImporter(const DatabaseImporterInput& input,
         }
         voters = s;
       }
-      csv += fmt::format("{},{},{},{},{}\n", images[p.a].name, images[p.b].name,
-                         PairSourceName(p.source), p.count, voters);
+      csv += fmt::format("{},{},{},{},{}\n",
+                         images[p.a].name,
+                         images[p.b].name,
+                         PairSourceName(p.source),
+                         p.count,
+                         voters);
     }
     WriteFileAtomically(JoinPaths(output_dir, "pairs.txt"), text);
     WriteFileAtomically(JoinPaths(output_dir, "covisibility.csv"), csv);
   }
-  WriteRigYaml(JoinPaths(output_dir, "rig.yaml"), rig,
+  WriteRigYaml(JoinPaths(output_dir, "rig.yaml"),
+               rig,
                "rig of the database (lisfm database_importer); cameras are COLMAP cameras 1..N");
   colmap::WriteRigConfigs({colmap::RigConfigFromRig(rig, camera_ids)},
                           JoinPaths(output_dir, "rig_config.json"));
@@ -924,23 +953,31 @@ DatabaseImporterSummary RunDatabaseImporter(const DatabaseImporterInput& input,
     json << "{\n";
     json << fmt::format("  \"input_type\": \"{}\",\n", input.input_type);
     json << fmt::format("  \"cameras\": {},\n  \"images\": {},\n  \"images_skipped\": {},\n",
-                        summary.num_cameras, summary.num_images, summary.num_images_skipped);
-    json << fmt::format("  \"rig_frames\": {},\n  \"keyframes\": {},\n", summary.num_frames,
-                        summary.num_keyframes);
+                        summary.num_cameras,
+                        summary.num_images,
+                        summary.num_images_skipped);
     json << fmt::format(
-        "  \"constraints\": {{\"read\": {}, \"written\": {}, \"dropped\": {}}},\n",
-        summary.num_constraints_read, summary.num_constraints_written,
-        summary.num_constraints_dropped);
+        "  \"rig_frames\": {},\n  \"keyframes\": {},\n", summary.num_frames, summary.num_keyframes);
+    json << fmt::format("  \"constraints\": {{\"read\": {}, \"written\": {}, \"dropped\": {}}},\n",
+                        summary.num_constraints_read,
+                        summary.num_constraints_written,
+                        summary.num_constraints_dropped);
     json << fmt::format(
         "  \"pairs\": {{\"total\": {}, \"covisibility\": {}, \"rig\": {}, \"temporal\": {}, "
         "\"priors\": {}, \"image_pairs_with_votes\": {}, \"priors_fallback\": {}}},\n",
-        summary.num_pairs, summary.num_pairs_covisibility, summary.num_pairs_rig,
-        summary.num_pairs_temporal, summary.num_pairs_priors,
-        summary.num_covisibility_votes_pairs, summary.priors_fallback ? "true" : "false");
+        summary.num_pairs,
+        summary.num_pairs_covisibility,
+        summary.num_pairs_rig,
+        summary.num_pairs_temporal,
+        summary.num_pairs_priors,
+        summary.num_covisibility_votes_pairs,
+        summary.priors_fallback ? "true" : "false");
     json << fmt::format(
         "  \"seconds\": {{\"read\": {}, \"covisibility\": {}, \"write\": {}, \"total\": {}}}\n",
-        JsonNumber(summary.seconds_read), JsonNumber(summary.seconds_covisibility),
-        JsonNumber(summary.seconds_write), JsonNumber(summary.seconds_total));
+        JsonNumber(summary.seconds_read),
+        JsonNumber(summary.seconds_covisibility),
+        JsonNumber(summary.seconds_write),
+        JsonNumber(summary.seconds_total));
     json << "}\n";
     WriteFileAtomically(JoinPaths(output_dir, "importer_summary.json"), json.str());
   }

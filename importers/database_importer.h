@@ -71,30 +71,30 @@
 namespace lisfm {
 
 struct CovisibilityOptions {
-  double max_point_distance_m = 0.05;  // m, a point of scan i matches scan j within this
-  double scan_voxel_size_m = 0.1;      // m, voxel downsampling of the query and z-buffer points (0: off)
+  double max_point_distance_m = 0.05;    // m, a point of scan i matches scan j within this
+  double scan_voxel_size_m = 0.1;        // m, voxel of the projected points (0: off)
   double max_image_time_offset_s = 0.6;  // s, an image belongs to a scan within this time
   int zbuffer_cell_px = 8;               // px, edge of a z-buffer cell
   double point_footprint_m = 0.15;       // m, diameter of the surface patch a z-buffer point covers
   double occlusion_tolerance_m = 0.15;   // m, depth margin of the visibility test
   double occlusion_tolerance_ratio = 0.05;  // relative depth margin of the visibility test
-  int min_count = 10;                // votes a pair needs to be listed
-  int max_pairs_per_image = 25;      // best pairs kept per image (a pair stays when either keeps it)
-  int num_temporal_neighbors = 1;    // successive images of the same camera paired with each image
-  bool intra_rig_pairs = true;       // pair the cameras of one rig frame whose views overlap
-  double min_view_overlap = 0.1;     // fraction of a camera's rays (at view_overlap_depth_m) seen by the other
+  int min_count = 10;                       // votes a pair needs to be listed
+  int max_pairs_per_image = 25;    // best pairs kept per image (a pair stays when either keeps it)
+  int num_temporal_neighbors = 1;  // successive images of the same camera paired with each image
+  bool intra_rig_pairs = true;     // pair the cameras of one rig frame whose views overlap
+  double min_view_overlap = 0.1;   // fraction of one camera's rays the other sees (rig pairs)
   double view_overlap_depth_m = 5.0;  // m, depth of the view-overlap test
-  int fallback_num_neighbors = 10;   // nearest images by prior position without constraints
-  int num_threads = -1;              // TBB threads (-1: all)
+  int fallback_num_neighbors = 10;    // nearest images by prior position without constraints
+  int num_threads = -1;               // TBB threads (-1: all)
   bool Check() const;
 };
 
 struct ImporterPriorOptions {
-  double min_position_sigma_m = 0.01;       // m, floor of the prior position sigma per axis
-  double drift_m_per_s = 0.02;              // m/s, sigma growth away from a keyframe
-  double drift_rad_per_s = 0.002;           // rad/s, rotation sigma growth (constraints)
-  double max_extrapolation_s = 0.01;        // s, images this far outside the trajectory keep its end pose
-  double max_frame_time_offset_s = 0.6;     // s, a constraint's keyframe to its rig frame at most
+  double min_position_sigma_m = 0.01;  // m, floor of the prior position sigma per axis
+  double drift_m_per_s = 0.02;         // m/s, sigma growth away from a keyframe
+  double drift_rad_per_s = 0.002;      // rad/s, rotation sigma growth (constraints)
+  double max_extrapolation_s = 0.01;  // s, images this far outside the trajectory keep its end pose
+  double max_frame_time_offset_s = 0.6;  // s, a constraint's keyframe to its rig frame at most
   bool Check() const;
 };
 
@@ -110,14 +110,14 @@ std::optional<SE3> InterpolatePoseSe3(const Trajectory& trajectory, TimestampNs 
 
 // One image of the database.
 struct ImporterImage {
-  std::string name;          // camK/data/<file>, relative to the image path
-  std::string path;          // file on disk
-  int camera_index = 0;      // rig camera
-  TimestampNs stamp_ns = 0;  // camera clock (the name)
-  TimestampNs t_imu_ns = 0;  // IMU clock
-  SE3 world_from_cam;        // prior
+  std::string name;                             // camK/data/<file>, relative to the image path
+  std::string path;                             // file on disk
+  int camera_index = 0;                         // rig camera
+  TimestampNs stamp_ns = 0;                     // camera clock (the name)
+  TimestampNs t_imu_ns = 0;                     // IMU clock
+  SE3 world_from_cam;                           // prior
   Mat3 position_covariance = Mat3::Identity();  // m^2, of the camera centre
-  int frame = -1;            // index of its rig frame
+  int frame = -1;                               // index of its rig frame
 };
 
 struct ImporterFrame {
@@ -186,10 +186,11 @@ std::pair<int, int> ReadImageSize(const std::string& path);
 
 // The inputs of one run.
 struct DatabaseImporterInput {
-  std::string input_path;      // sequence folder (or the HILTI GTSFM folder)
-  std::string image_path;      // image root ("" = input_path)
-  std::string pose_slam_path;  // trajectory.txt, keyframes.txt, keyframe_covariances.txt, constraints.txt
-  std::string lio_path;        // keyframes/<t_ns>.pcd
+  std::string input_path;  // sequence folder (or the HILTI GTSFM folder)
+  std::string image_path;  // image root ("" = input_path)
+  std::string
+      pose_slam_path;    // trajectory.txt, keyframes.txt, keyframe_covariances.txt, constraints.txt
+  std::string lio_path;  // keyframes/<t_ns>.pcd
   std::string input_type = "sequence";  // sequence | hilti_gtsfm
 };
 

@@ -1,9 +1,9 @@
 #include "importers/database_importer.h"
 
+#include <gtest/gtest.h>
+
 #include <cmath>
 #include <fstream>
-
-#include <gtest/gtest.h>
 
 #include "colmap_ext/sfm/lidar_constraints.h"
 #include "core/file_utils.h"
@@ -45,7 +45,8 @@ std::vector<Eigen::Vector3f> Wall(double x0) {
   return points;
 }
 
-KeyframeScan MakeScan(TimestampNs t, const SE3& world_from_imu,
+KeyframeScan MakeScan(TimestampNs t,
+                      const SE3& world_from_imu,
                       const std::vector<Eigen::Vector3f>& world_points) {
   KeyframeScan s;
   s.t_ns = t;
@@ -227,22 +228,21 @@ TEST(ReexpressConstraints, ExactBetweenRigFramesAndAttachesInTheMapper) {
     frame.stamp_ns = frames[f].stamp_ns;
     state.frames[frame.frame_id] = frame;
   }
-  EXPECT_EQ(colmap::AttachLidarConstraints(out, colmap::kDefaultLidarConstraintToleranceNs,
-                                           &state),
+  EXPECT_EQ(colmap::AttachLidarConstraints(out, colmap::kDefaultLidarConstraintToleranceNs, &state),
             out.size());
   // The keyframe stamps themselves would not attach (100-250 ms away).
   colmap::MapperState state2 = state;
   state2.lidar_constraints.clear();
-  EXPECT_EQ(colmap::AttachLidarConstraints(records, colmap::kDefaultLidarConstraintToleranceNs,
-                                           &state2),
-            0u);
+  EXPECT_EQ(
+      colmap::AttachLidarConstraints(records, colmap::kDefaultLidarConstraintToleranceNs, &state2),
+      0u);
 }
 
 TEST(ReadImageSize, PngAndJpegHeaders) {
   test::TempDir dir;
   // PNG signature + IHDR with width 720, height 540.
-  const unsigned char png[] = {0x89, 'P', 'N', 'G', 0x0d, 0x0a, 0x1a, 0x0a, 0, 0, 0, 13,
-                               'I', 'H', 'D', 'R', 0, 0, 0x02, 0xd0, 0, 0, 0x02, 0x1c};
+  const unsigned char png[] = {0x89, 'P', 'N', 'G', 0x0d, 0x0a, 0x1a, 0x0a, 0, 0, 0,    13,
+                               'I',  'H', 'D', 'R', 0,    0,    0x02, 0xd0, 0, 0, 0x02, 0x1c};
   {
     std::ofstream f(dir.File("a.png"), std::ios::binary);
     f.write(reinterpret_cast<const char*>(png), sizeof(png));

@@ -1,11 +1,11 @@
 #include "importers/testing/pose_slam_standin.h"
 
+#include <fmt/format.h>
+#include <tbb/parallel_for.h>
+
 #include <algorithm>
 #include <mutex>
 #include <set>
-
-#include <fmt/format.h>
-#include <tbb/parallel_for.h>
 
 #include "core/errors.h"
 #include "core/file_utils.h"
@@ -67,8 +67,7 @@ size_t WritePoseSlamStandIn(const std::string& lio_path,
     std::vector<std::pair<double, int>> near;
     for (int j = 0; j < n; ++j) {
       if (j == i) continue;
-      const double d =
-          (keyframes[i].pose.translation() - keyframes[j].pose.translation()).norm();
+      const double d = (keyframes[i].pose.translation() - keyframes[j].pose.translation()).norm();
       if (d <= options.max_pair_distance_m) near.push_back({d, j});
     }
     std::sort(near.begin(), near.end());
@@ -79,8 +78,8 @@ size_t WritePoseSlamStandIn(const std::string& lio_path,
   }
   std::vector<PointSet> clouds(n);
   for (int i = 0; i < n; ++i) {
-    clouds[i] = FinitePointsOf(ReadPointCloud(
-        JoinPaths(lio_path, fmt::format("keyframes/{}.pcd", keyframes[i].t_ns))));
+    clouds[i] = FinitePointsOf(
+        ReadPointCloud(JoinPaths(lio_path, fmt::format("keyframes/{}.pcd", keyframes[i].t_ns))));
   }
   const std::vector<std::pair<int, int>> list(pairs.begin(), pairs.end());
   std::vector<LidarConstraintRecord> records(list.size());
@@ -96,8 +95,7 @@ size_t WritePoseSlamStandIn(const std::string& lio_path,
     NormalOptions normals;
     normals.num_neighbors = bayes.normal_neighbors;
     try {
-      const KdTreeTarget target(VoxelDownsamplePoints(clouds[i], options.target_voxel_m),
-                                normals);
+      const KdTreeTarget target(VoxelDownsamplePoints(clouds[i], options.target_voxel_m), normals);
       const PointSet source = VoxelDownsamplePoints(clouds[j], options.source_voxel_m);
       LidarConstraintRecord& r = records[q];
       r.t_i_ns = keyframes[i].t_ns;
@@ -112,8 +110,8 @@ size_t WritePoseSlamStandIn(const std::string& lio_path,
         const BayesianIcpResult result = RegisterBayesian(source, target, initial, bayes);
         if (!result.icp.converged) return;
         r.i_from_j = result.posterior.mean;
-        r.covariance = 0.5 * (result.posterior.covariance +
-                              result.posterior.covariance.transpose());
+        r.covariance =
+            0.5 * (result.posterior.covariance + result.posterior.covariance.transpose());
       }
       // A registration far from lio's relative pose is a failure, not a constraint.
       const Vec6 d = (initial.Inverse() * r.i_from_j).Log();

@@ -23,7 +23,7 @@ struct PoseSlamStandInOptions {
   int sgld_iterations = 300;         // SGLD iterations of the Bayesian ICP
   double keyframe_sigma_rotation_rad = 0.005;  // constant keyframe marginal, per axis
   double keyframe_sigma_translation_m = 0.02;  // constant keyframe marginal, per axis
-  bool point_to_plane_only = false;  // skip the SGLD chain: ICP + a constant covariance
+  bool point_to_plane_only = false;            // skip the SGLD chain: ICP + a constant covariance
 };
 
 // Writes the four files into `output_dir` (created). Returns the number of

@@ -5,6 +5,7 @@
 // world_from_cam = groundtruth.txt(<ns> + true timeshift_cam_imu) *
 // T_cam_imu_true^-1 with truth/rig.yaml (docs/FORMATS.md "Error sources"; the
 // rig.yaml of the sequence when there is no truth/).
+#include <algorithm>
 #include <exception>
 #include <iostream>
 #include <string>
@@ -38,8 +39,11 @@ int main(int argc, char** argv) {
       if (cam == std::string::npos || slash == std::string::npos) continue;
       const int k = std::stoi(row.name.substr(cam + 3));
       const TimestampNs stamp = std::stoll(row.name.substr(slash + 1));
+      // Poses beyond the ground truth's ends are those at its ends.
       const auto pose =
-          gt.Interpolate(stamp + SecondsToNs(truth.cameras.at(k).timeshift_cam_imu_s));
+          gt.Interpolate(std::clamp(stamp + SecondsToNs(truth.cameras.at(k).timeshift_cam_imu_s),
+                                    gt.start_ns(),
+                                    gt.end_ns()));
       if (!pose) continue;
       colmap::Image image;
       image.image_id = row.image_id;
