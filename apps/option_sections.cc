@@ -33,7 +33,7 @@ void AddDatabaseImporterOptions(OptionManager* options, DatabaseImporterOptions*
                      "m, voxel downsampling of the projected points and z-buffers (0 = off)",
                      R::AtLeast(0));
   options->AddDouble("DatabaseImporter.max_image_time_offset_s", &c->max_image_time_offset_s,
-                     "s, an image is near a scan when their times differ at most this",
+                     "s, an image belongs to the keyframe scan nearest in time, at most this far",
                      R::GreaterThan(0));
   options->AddInt("DatabaseImporter.zbuffer_cell_px", &c->zbuffer_cell_px,
                   "px, z-buffer cell edge of the visibility test", R::AtLeast(1));

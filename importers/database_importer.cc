@@ -149,31 +149,6 @@ ZBuffer BuildZBuffer(const CameraModel& model,
   return z;
 }
 
-// The images nearest in time to t_ns, one per camera, within max_dt_ns.
-std::vector<int> ImagesNearTime(const std::vector<std::vector<int>>& images_by_camera,
-                                const std::vector<ImporterImage>& images,
-                                TimestampNs t_ns,
-                                int64_t max_dt_ns) {
-  std::vector<int> result;
-  for (const std::vector<int>& list : images_by_camera) {
-    int best = -1;
-    int64_t best_dt = max_dt_ns;
-    auto it = std::lower_bound(list.begin(), list.end(), t_ns, [&](int index, TimestampNs t) {
-      return images[index].t_imu_ns < t;
-    });
-    for (auto c : {it, it == list.begin() ? list.end() : std::prev(it)}) {
-      if (c == list.end()) continue;
-      const int64_t dt = std::llabs(images[*c].t_imu_ns - t_ns);
-      if (dt <= best_dt) {
-        if (best < 0 || dt < best_dt || *c < best) best = *c;
-        best_dt = dt;
-      }
-    }
-    if (best >= 0) result.push_back(best);
-  }
-  return result;
-}
-
 }  // namespace
 
 std::map<std::pair<int, int>, PairVotes> ComputeCovisibility(
@@ -183,16 +158,8 @@ std::map<std::pair<int, int>, PairVotes> ComputeCovisibility(
     const std::vector<std::pair<int, int>>& scan_pairs,
     const CovisibilityOptions& options) {
   THROW_CHECK(options.Check());
-  std::vector<std::vector<int>> images_by_camera(rig.cameras.size());
-  for (size_t k = 0; k < images.size(); ++k) {
-    THROW_CHECK_LT(static_cast<size_t>(images[k].camera_index), rig.cameras.size());
-    images_by_camera[images[k].camera_index].push_back(static_cast<int>(k));
-  }
-  for (auto& list : images_by_camera) {
-    std::sort(list.begin(), list.end(), [&](int x, int y) {
-      return images[x].t_imu_ns < images[y].t_imu_ns ||
-             (images[x].t_imu_ns == images[y].t_imu_ns && x < y);
-    });
+  for (const ImporterImage& image : images) {
+    THROW_CHECK_LT(static_cast<size_t>(image.camera_index), rig.cameras.size());
   }
   const int64_t max_dt_ns = SecondsToNs(options.max_image_time_offset_s);
 
@@ -217,6 +184,30 @@ std::map<std::pair<int, int>, PairVotes> ComputeCovisibility(
     used[i] = used[j] = 1;
   }
   std::vector<ScanData> data(scans.size());
+  // Each image belongs to the used scan nearest to it in time (within max_dt_ns).
+  {
+    std::vector<std::pair<TimestampNs, int>> by_time;
+    for (size_t u = 0; u < scans.size(); ++u) {
+      if (used[u]) by_time.emplace_back(scans[u].t_ns, static_cast<int>(u));
+    }
+    std::sort(by_time.begin(), by_time.end());
+    for (size_t k = 0; k < images.size() && !by_time.empty(); ++k) {
+      const TimestampNs t = images[k].t_imu_ns;
+      auto it = std::lower_bound(
+          by_time.begin(), by_time.end(), std::make_pair(t, std::numeric_limits<int>::min()));
+      int best = -1;
+      int64_t best_dt = max_dt_ns;
+      for (auto c : {it, it == by_time.begin() ? by_time.end() : std::prev(it)}) {
+        if (c == by_time.end()) continue;
+        const int64_t dt = std::llabs(c->first - t);
+        if (dt < best_dt || (dt == best_dt && (best < 0 || c->second < best))) {
+          best = c->second;
+          best_dt = dt;
+        }
+      }
+      if (best >= 0) data[best].images.push_back(static_cast<int>(k));
+    }
+  }
   tbb::parallel_for(size_t(0), scans.size(), [&](size_t s) {
     if (!used[s]) return;
     const KeyframeScan& scan = scans[s];
@@ -228,7 +219,6 @@ std::map<std::pair<int, int>, PairVotes> ComputeCovisibility(
     ScanData& d = data[s];
     d.sparse_world = VoxelDownsamplePoints(world, options.scan_voxel_size_m);
     d.tree = std::make_unique<KdTree>(std::move(world), "keyframe scan");
-    d.images = ImagesNearTime(images_by_camera, images, scan.t_ns, max_dt_ns);
     for (int image : d.images) {
       const SE3 cam_from_world = images[image].world_from_cam.Inverse();
       d.cam_from_world.push_back(cam_from_world);
@@ -830,6 +820,10 @@ DatabaseImporterSummary RunDatabaseImporter(const DatabaseImporterInput& input,
       }
       if (!seen.insert({std::min(ti, tj), std::max(ti, tj)}).second) continue;
       scan_pairs.push_back({scan_index(ti), scan_index(tj)});
+    }
+    // Each scan with itself: the images of one scan that see the same points.
+    for (size_t u = 0; u < scans.size(); ++u) {
+      scan_pairs.push_back({static_cast<int>(u), static_cast<int>(u)});
     }
     votes = ComputeCovisibility(rig, images, scans, scan_pairs, options.covisibility);
   }

@@ -28,17 +28,17 @@
 // constrained keyframe pair (i, j) both scans go to the world frame with the
 // pose_slam keyframe poses; each point of scan i (voxel-downsampled) whose
 // nearest point of scan j is within max_point_distance_m is projected into the
-// images nearest in time to scan i (every camera) and to scan j (every camera),
-// each with its camera model. A projection counts only when the point is the
-// first surface along the ray: its range is at most the smallest range of the
-// own scan's points covering the same z-buffer cell (zbuffer_cell_px; each
-// point covers a disc of point_footprint_m, the LiDAR samples being sparser
-// than the pixels nearby) times
-// (1 + occlusion_tolerance_ratio) plus occlusion_tolerance_m. Every pair (image
-// a seeing it from the side of i, image b seeing it from the side of j, a != b)
-// gets one vote. Scan pairs run in parallel (TBB); the votes are merged in
-// scan-pair order, so the result does not depend on the thread count.
-// Selection: pairs with >= min_count votes, each kept when it is among the
+// images of scan i and of scan j (every camera; an image belongs to the scan
+// nearest to it in time, within max_image_time_offset_s: keyframes are spaced
+// by motion, so a long gap means little motion), each with its camera model. A projection counts
+// only when the point is the first surface along the ray: its range is at most the smallest range
+// of the own scan's points covering the same z-buffer cell (zbuffer_cell_px; each point covers a
+// disc of point_footprint_m, the LiDAR samples being sparser than the pixels nearby) times (1 +
+// occlusion_tolerance_ratio) plus occlusion_tolerance_m. Every pair (image a seeing it from the
+// side of i, image b seeing it from the side of j, a != b) gets one vote. Scan pairs run in
+// parallel (TBB); the votes are merged in scan-pair order, so the result does not depend on the
+// thread count. The importer adds every scan paired with itself (its images that see the same
+// points). Selection: pairs with >= min_count votes, each kept when it is among the
 // max_pairs_per_image best of either of its images; plus intra-rig pairs of
 // cameras whose fields of view overlap and num_temporal_neighbors successive
 // images per camera. Without constraints the co-visibility part is replaced by
@@ -73,7 +73,7 @@ namespace lisfm {
 struct CovisibilityOptions {
   double max_point_distance_m = 0.05;    // m, a point of scan i matches scan j within this
   double scan_voxel_size_m = 0.1;        // m, voxel of the projected points (0: off)
-  double max_image_time_offset_s = 0.6;  // s, an image belongs to a scan within this time
+  double max_image_time_offset_s = 2.5;  // s, an image belongs to its nearest scan within this
   int zbuffer_cell_px = 8;               // px, edge of a z-buffer cell
   double point_footprint_m = 0.15;       // m, diameter of the surface patch a z-buffer point covers
   double occlusion_tolerance_m = 0.15;   // m, depth margin of the visibility test

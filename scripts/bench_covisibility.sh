@@ -6,6 +6,7 @@
 #
 #   scripts/bench_covisibility.sh [--scene NAME] [--duration S] [--camera_rate HZ]
 #                                 [--max_num_features N] [--work_dir DIR] [--skip_mapper]
+#                                 [--importer_args "..."]
 #
 # Steps (cached in WORK_DIR, keyed by the scene/duration/rate): lisfm simulate
 # (default calibration errors), lisfm lio, a stand-in pose_slam folder from the
@@ -22,6 +23,8 @@
 # constraints; cam_from_rig refined): registered images and camera errors
 # against the simulator's ground truth (SE(3) alignment, lisfm model_evaluator).
 # --scene defaults to site; an unknown scene falls back to office with a note.
+# --importer_args: extra lisfm database_importer options. The features and the
+# exhaustive result are reused only while the importer's image list is the same.
 set -euo pipefail
 source "$(dirname "${BASH_SOURCE[0]}")/common.sh"
 
@@ -31,7 +34,8 @@ RATE=1
 FEATURES=1024
 WORK_DIR=/tmp/lisfm_bench_covisibility
 SKIP_MAPPER=0
-usage() { sed -n '2,26p' "${BASH_SOURCE[0]}" | sed 's/^# \{0,1\}//'; }
+IMPORTER_ARGS=""
+usage() { sed -n '2,29p' "${BASH_SOURCE[0]}" | sed 's/^# \{0,1\}//'; }
 while [ $# -gt 0 ]; do
   case "$1" in
     --scene) SCENE=$2; shift 2 ;;
@@ -40,6 +44,7 @@ while [ $# -gt 0 ]; do
     --max_num_features) FEATURES=$2; shift 2 ;;
     --work_dir) WORK_DIR=$2; shift 2 ;;
     --skip_mapper) SKIP_MAPPER=1; shift ;;
+    --importer_args) IMPORTER_ARGS=$2; shift 2 ;;
     -h|--help) usage; exit 0 ;;
     *) echo "error: unknown argument '$1'" >&2; usage >&2; exit 2 ;;
   esac
@@ -74,13 +79,18 @@ elapsed() { echo "$2 - $1" | bc; }
 rm -rf "$W/db"
 t0=$(now)
 "$LISFM" database_importer --input_path "$W/seq" --pose_slam_path "$W/ps" --lio_path "$W/lio" \
-  --output_path "$W/db" --DatabaseImporter.num_threads "$LISFM_JOBS" --quiet 1
+  --output_path "$W/db" --DatabaseImporter.num_threads "$LISFM_JOBS" --quiet 1 $IMPORTER_ARGS
 IMPORT_S=$(elapsed "$t0" "$(now)")
+if [ -f "$W/features.db" ] && ! cmp -s "$W/db/image_list.txt" "$W/features_image_list.txt"; then
+  echo "note: the image list changed; extracting features and matching exhaustively again" >&2
+  rm -f "$W/features.db" "$W/exhaustive.db"
+fi
 if [ ! -f "$W/features.db" ]; then
   cp "$W/db/database.db" "$W/features.tmp.db"
   colmap feature_extractor --database_path "$W/features.tmp.db" --image_path "$W/seq" \
     --image_list_path "$W/db/image_list.txt" $SIFT >"$W/features.log" 2>&1
   mv "$W/features.tmp.db" "$W/features.db"
+  cp "$W/db/image_list.txt" "$W/features_image_list.txt"
 fi
 NUM_IMAGES=$(sqlite3 "$W/features.db" "select count(*) from images")
 "$REFMODEL" "$W/seq" "$W/features.db" "$W/reference" >/dev/null
@@ -102,8 +112,8 @@ num_pairs() { sqlite3 "$1" "select count(*) from matches"; }
 # recall DB MIN: fraction of the verified pairs with >= MIN inliers whose pair
 # the method matched.
 recall() {
-  sqlite3 "$1" "select pair_id from matches" | sort -n >"$W/matched.tmp"
-  awk -v min="$2" '$2 >= min {print $1}' "$W/verified.txt" | sort -n >"$W/verified.tmp"
+  sqlite3 "$1" "select pair_id from matches" | sort >"$W/matched.tmp"
+  awk -v min="$2" '$2 >= min {print $1}' "$W/verified.txt" | sort >"$W/verified.tmp"
   local total hit
   total=$(wc -l <"$W/verified.tmp")
   hit=$(comm -12 "$W/matched.tmp" "$W/verified.tmp" | wc -l)

@@ -4,6 +4,7 @@
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
+#include <cstdlib>
 #include <mutex>
 #include <set>
 
@@ -58,15 +59,18 @@ size_t WritePoseSlamStandIn(const std::string& lio_path,
   }
   WriteKeyframeCovariances(covariances, JoinPaths(output_dir, "keyframe_covariances.txt"));
 
-  // Candidate pairs: consecutive keyframes, and each keyframe's nearest
-  // partners within max_pair_distance_m.
+  // Candidate pairs: index steps below min_index_step, and each keyframe's
+  // nearest partners with a step in [min_index_step, max_index_step].
   const int n = static_cast<int>(keyframes.size());
   std::set<std::pair<int, int>> pairs;
-  for (int i = 0; i + 1 < n; ++i) pairs.insert({i, i + 1});
+  for (int i = 0; i < n; ++i) {
+    for (int j = i + 1; j < n && j - i < options.min_index_step; ++j) pairs.insert({i, j});
+  }
   for (int i = 0; i < n; ++i) {
     std::vector<std::pair<double, int>> near;
     for (int j = 0; j < n; ++j) {
-      if (j == i) continue;
+      const int step = std::abs(j - i);
+      if (step < options.min_index_step || step > options.max_index_step) continue;
       const double d = (keyframes[i].pose.translation() - keyframes[j].pose.translation()).norm();
       if (d <= options.max_pair_distance_m) near.push_back({d, j});
     }
