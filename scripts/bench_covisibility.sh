@@ -35,7 +35,7 @@ FEATURES=1024
 WORK_DIR=/tmp/lisfm_bench_covisibility
 SKIP_MAPPER=0
 IMPORTER_ARGS=""
-usage() { sed -n '2,29p' "${BASH_SOURCE[0]}" | sed 's/^# \{0,1\}//'; }
+usage() { sed -n '2,27p' "${BASH_SOURCE[0]}" | sed 's/^# \{0,1\}//'; }
 while [ $# -gt 0 ]; do
   case "$1" in
     --scene) SCENE=$2; shift 2 ;;
