@@ -34,6 +34,10 @@ const std::vector<Command>& Commands() {
        &RunModelAnalyzer},
       {"database_info", "COLMAP database: schema, rows per table, pose priors",
        &RunDatabaseInfo},
+      {"database_importer",
+       "COLMAP database with pose priors, rig and a LiDAR-proxy co-visibility pair list from a "
+       "sequence + pose_slam output",
+       &RunDatabaseImporter},
       {"global_mapper",
        "global SfM on a COLMAP database (rotation/translation averaging, rig BA with priors and "
        "LiDAR constraints)",

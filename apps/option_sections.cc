@@ -22,6 +22,73 @@ std::vector<std::pair<std::string, AlignmentType>> AlignmentChoices(
 
 }  // namespace
 
+void AddDatabaseImporterOptions(OptionManager* options, DatabaseImporterOptions* importer) {
+  CovisibilityOptions* c = &importer->covisibility;
+  ImporterPriorOptions* p = &importer->priors;
+  options->AddDouble("DatabaseImporter.max_point_distance_m", &c->max_point_distance_m,
+                     "m, a point of scan i is a co-visible point when scan j has a point "
+                     "within this",
+                     R::GreaterThan(0));
+  options->AddDouble("DatabaseImporter.scan_voxel_size_m", &c->scan_voxel_size_m,
+                     "m, voxel downsampling of the projected points and z-buffers (0 = off)",
+                     R::AtLeast(0));
+  options->AddDouble("DatabaseImporter.max_image_time_offset_s", &c->max_image_time_offset_s,
+                     "s, an image belongs to the keyframe scan nearest in time, at most this far",
+                     R::GreaterThan(0));
+  options->AddInt("DatabaseImporter.zbuffer_cell_px", &c->zbuffer_cell_px,
+                  "px, z-buffer cell edge of the visibility test", R::AtLeast(1));
+  options->AddDouble("DatabaseImporter.point_footprint_m", &c->point_footprint_m,
+                     "m, diameter of the surface patch each scan point covers in the z-buffer",
+                     R::AtLeast(0));
+  options->AddDouble("DatabaseImporter.occlusion_tolerance_m", &c->occlusion_tolerance_m,
+                     "m, a point is visible up to this behind the nearest scan point of its cell",
+                     R::AtLeast(0));
+  options->AddDouble("DatabaseImporter.occlusion_tolerance_ratio",
+                     &c->occlusion_tolerance_ratio,
+                     "relative depth margin of the visibility test (fraction of the range)",
+                     R::AtLeast(0));
+  options->AddInt("DatabaseImporter.min_count", &c->min_count,
+                  "co-visible points an image pair needs to be listed", R::AtLeast(1));
+  options->AddInt("DatabaseImporter.max_pairs_per_image", &c->max_pairs_per_image,
+                  "best co-visibility pairs kept per image (a pair stays when either image "
+                  "keeps it)",
+                  R::AtLeast(1));
+  options->AddInt("DatabaseImporter.num_temporal_neighbors", &c->num_temporal_neighbors,
+                  "successive images of the same camera paired with each image", R::AtLeast(0));
+  options->AddBool("DatabaseImporter.intra_rig_pairs", &c->intra_rig_pairs,
+                   "pair the cameras of one rig frame whose views overlap");
+  options->AddDouble("DatabaseImporter.min_view_overlap", &c->min_view_overlap,
+                     "fraction of one camera's rays (at view_overlap_depth_m) the other sees "
+                     "for an intra-rig pair",
+                     R::Between(0, 1));
+  options->AddDouble("DatabaseImporter.view_overlap_depth_m", &c->view_overlap_depth_m,
+                     "m, depth of the intra-rig view-overlap test", R::GreaterThan(0));
+  options->AddInt("DatabaseImporter.fallback_num_neighbors", &c->fallback_num_neighbors,
+                  "without constraints: nearest images by prior position paired with each",
+                  R::AtLeast(1));
+  options->AddInt("DatabaseImporter.num_threads", &c->num_threads, "threads (-1 = all cores)",
+                  R::AtLeast(1).Or(-1));
+  options->AddDouble("DatabaseImporter.min_position_sigma_m", &p->min_position_sigma_m,
+                     "m, floor of the prior position sigma per axis", R::GreaterThan(0));
+  options->AddDouble("DatabaseImporter.drift_m_per_s", &p->drift_m_per_s,
+                     "m/s, position sigma growth with the time to the nearest keyframe (priors, "
+                     "constraints)",
+                     R::AtLeast(0));
+  options->AddDouble("DatabaseImporter.drift_rad_per_s", &p->drift_rad_per_s,
+                     "rad/s, rotation sigma growth with the time between a keyframe and its rig "
+                     "frame (constraints)",
+                     R::AtLeast(0));
+  options->AddDouble("DatabaseImporter.max_extrapolation_s", &p->max_extrapolation_s,
+                     "s, images at most this far outside the pose_slam trajectory keep the end "
+                     "pose as prior; farther ones are left out",
+                     R::AtLeast(0));
+  options->AddDouble("DatabaseImporter.max_frame_time_offset_s", &p->max_frame_time_offset_s,
+                     "s, a constraint's keyframe is moved to the nearest rig frame at most "
+                     "this far away",
+                     R::GreaterThan(0));
+  options->AddStructCheck([importer] { return importer->Check(); });
+}
+
 void AddIcpOptions(OptionManager* options, IcpOptions* icp) {
   options->AddInt("Icp.max_iterations",
                   &icp->max_iterations,

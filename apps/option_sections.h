@@ -18,6 +18,7 @@
 #include "icp/bayesian_icp.h"
 #include "icp/icp.h"
 #include "icp/normals.h"
+#include "importers/database_importer.h"
 #include "lio/imu.h"
 #include "lio/lio_odometry.h"
 #include "lio/pose_slam/g2o_pose_graph.h"
@@ -26,6 +27,10 @@
 #include "sim/simulator.h"
 
 namespace lisfm {
+
+// DatabaseImporter.*: co-visibility pair selection and pose priors of lisfm
+// database_importer (importers/database_importer.h).
+void AddDatabaseImporterOptions(OptionManager* options, DatabaseImporterOptions* importer);
 
 // Icp.*: point-to-plane ICP.
 void AddIcpOptions(OptionManager* options, IcpOptions* icp);

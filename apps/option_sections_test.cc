@@ -109,6 +109,10 @@ TEST(OptionSections, IcpRangesAgreeWithCheck) {
   ExpectRangesAgreeWithCheck<BayesianIcpOptions>(AddBayesianIcpOptions);
 }
 
+TEST(OptionSections, DatabaseImporterRangesAgreeWithCheck) {
+  ExpectRangesAgreeWithCheck<DatabaseImporterOptions>(AddDatabaseImporterOptions);
+}
+
 TEST(OptionSections, LioRangesAgreeWithCheck) {
   ExpectRangesAgreeWithCheck<LioOptions>(AddLioOptions);
   ExpectRangesAgreeWithCheck<VoxelMapOptions>(AddVoxelMapOptions);
