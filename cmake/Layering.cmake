@@ -10,6 +10,7 @@ set(LISFM_LAYERS
   "core/io|lisfm_core_io|core"
   "icp|lisfm_icp|core core/io"
   "lio|lisfm_lio|core core/io icp"
+  "lio/pose_slam|lisfm_pose_slam|core core/io icp lio"
   "colmap_ext/io|lisfm_colmap_io|core core/io"
   "colmap_ext/sfm|lisfm_colmap_sfm|core core/io colmap_ext/io"
   "importers|lisfm_importers|core core/io icp colmap_ext/io"
