@@ -24,6 +24,10 @@ const std::vector<Command>& Commands() {
       {"evaluate", "score a trajectory against ground truth (ATE, RPE, HILTI 2022 score)",
        &RunEvaluate},
       {"icp", "register two clouds: point-to-plane or Bayesian ICP, with covariance", &RunIcp},
+      {"pose_graph",
+       "optimise a g2o pose graph (2D/3D): chordal initialisation, then Levenberg-Marquardt on "
+       "SE-Sync's objective",
+       &RunPoseGraph},
       {"model_converter", "convert a COLMAP sparse model between BIN, TXT and PLY",
        &RunModelConverter},
       {"model_analyzer", "print COLMAP model statistics (as colmap model_analyzer)",

@@ -432,6 +432,40 @@ void AddImuInitializerOptions(OptionManager* options,
   options->AddStructCheck([init] { return init->Check(); });
 }
 
+void AddPoseGraphSolverOptions(OptionManager* options, PoseGraphSolverOptions* solver) {
+  options->AddInt("Solver.max_num_iterations",
+                  &solver->max_num_iterations,
+                  "Levenberg-Marquardt iterations at most",
+                  R::AtLeast(1));
+  options->AddDouble("Solver.function_tolerance",
+                     &solver->function_tolerance,
+                     "stop when the relative cost change is below this",
+                     R::AtLeast(0));
+  options->AddDouble("Solver.gradient_tolerance",
+                     &solver->gradient_tolerance,
+                     "stop when the largest projected gradient entry is below this",
+                     R::AtLeast(0));
+  options->AddDouble("Solver.parameter_tolerance",
+                     &solver->parameter_tolerance,
+                     "stop when the relative step size is below this",
+                     R::AtLeast(0));
+  options->AddInt("Solver.num_threads",
+                  &solver->num_threads,
+                  "threads for the residual and Jacobian evaluation (-1 = all cores)",
+                  R::AtLeast(1).Or(-1));
+  options->AddStructCheck([solver] { return solver->Check(); });
+}
+
+void AddPoseGraphOptions(OptionManager* options, G2oOptimizationOptions* pose_graph) {
+  options->AddChoice("PoseGraph.initialization",
+                     &pose_graph->initialization,
+                     {"chordal", "vertices"},
+                     "start of Levenberg-Marquardt: the chordal initialisation, or the "
+                     "file's VERTEX poses");
+  AddPoseGraphSolverOptions(options, &pose_graph->solver);
+  options->AddStructCheck([pose_graph] { return pose_graph->Check(); });
+}
+
 void AddTrajectoryEvaluationOptions(OptionManager* options,
                                     TrajectoryEvaluationOptions* eval) {
   options->AddEnum(

@@ -20,6 +20,8 @@
 #include "icp/normals.h"
 #include "lio/imu.h"
 #include "lio/lio_odometry.h"
+#include "lio/pose_slam/g2o_pose_graph.h"
+#include "lio/pose_slam/pose_graph.h"
 #include "lio/voxel_map.h"
 #include "sim/simulator.h"
 
@@ -42,6 +44,11 @@ void AddLioOptions(OptionManager* options, LioOptions* lio);
 void AddVoxelMapOptions(OptionManager* options, VoxelMapOptions* map);
 void AddImuInitializerOptions(OptionManager* options,
                               ImuInitializerOptions* init);
+
+// Solver.*: Levenberg-Marquardt of the pose graph (lisfm pose_graph, pose_slam).
+void AddPoseGraphSolverOptions(OptionManager* options, PoseGraphSolverOptions* solver);
+// PoseGraph.initialization and Solver.* (AddPoseGraphSolverOptions): lisfm pose_graph.
+void AddPoseGraphOptions(OptionManager* options, G2oOptimizationOptions* pose_graph);
 
 // `alignment` (alias `align`); no section (lisfm evaluate). The association
 // tolerance is the command's --max_dt (seconds; its default depends on the

@@ -115,6 +115,11 @@ TEST(OptionSections, LioRangesAgreeWithCheck) {
   ExpectRangesAgreeWithCheck<ImuInitializerOptions>(AddImuInitializerOptions);
 }
 
+TEST(OptionSections, PoseGraphRangesAgreeWithCheck) {
+  ExpectRangesAgreeWithCheck<PoseGraphSolverOptions>(AddPoseGraphSolverOptions);
+  ExpectRangesAgreeWithCheck<G2oOptimizationOptions>(AddPoseGraphOptions);
+}
+
 TEST(OptionSections, SimulatorRangesAgreeWithCheck) {
   ExpectRangesAgreeWithCheck<sim::SimulatorOptions>(
       [](OptionManager* options, sim::SimulatorOptions* sim) {

@@ -39,6 +39,15 @@ void ExpectHelpContains(const std::string& command, const std::string& text) {
       << out;
 }
 
+TEST(OptionRanges, PoseGraph) {
+  const std::string pose_graph = "pose_graph --input_path g.g2o";
+  ExpectUsageError(pose_graph + " --Solver.max_num_iterations 0",
+                   "--Solver.max_num_iterations 0 is out of range: must be >= 1");
+  ExpectUsageError(pose_graph + " --Solver.num_threads 0",
+                   "--Solver.num_threads 0 is out of range: must be -1 or >= 1");
+  ExpectHelpContains("pose_graph", "--Solver.function_tolerance");
+}
+
 TEST(OptionRanges, Icp) {
   const std::string icp = "icp --source_path a.pcd --target_path b.pcd";
   ExpectUsageError(icp + " --Icp.max_iterations 0",
