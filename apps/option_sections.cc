@@ -513,6 +513,21 @@ void AddPoseSlamOptions(OptionManager* options, PoseSlamOptions* pose_slam) {
   options->AddDouble("PoseSlam.odometry_sigma_translation_per_m",
                      &o->odometry_sigma_translation_per_m,
                      "m per m travelled, added to the odometry translation sigma", R::AtLeast(0));
+  options->AddDouble("PoseSlam.imu_gyro_error", &o->imu_gyro_error,
+                     "unmodelled gyro error (scale, misalignment) as a fraction of the rotation "
+                     "angle between keyframes",
+                     R::AtLeast(0));
+  options->AddDouble("PoseSlam.imu_accel_error", &o->imu_accel_error,
+                     "unmodelled accelerometer error as a fraction of the integrated specific "
+                     "force between keyframes",
+                     R::AtLeast(0));
+  options->AddDouble("PoseSlam.bias_instability_gyro", &o->bias_instability_gyro,
+                     "rad/s, 1-sigma departure of the gyro bias from its piecewise constant",
+                     R::AtLeast(0));
+  options->AddDouble("PoseSlam.bias_instability_accel", &o->bias_instability_accel,
+                     "m/s^2, 1-sigma departure of the accelerometer bias from its piecewise "
+                     "constant",
+                     R::AtLeast(0));
   options->AddDouble("PoseSlam.bias_prior_gyro", &o->bias_prior_gyro,
                      "rad/s, 1-sigma prior of the first gyro bias around 0", R::GreaterThan(0));
   options->AddDouble("PoseSlam.bias_prior_accel", &o->bias_prior_accel,

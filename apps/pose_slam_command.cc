@@ -75,6 +75,8 @@ nlohmann::json SummaryJson(const PoseSlamResult& r, double map_s, double total_s
     biases.push_back({{"gyro", {b(0), b(1), b(2)}}, {"accel", {b(3), b(4), b(5)}}});
   }
   j["biases"] = biases;
+  j["gravity_direction"] = {r.gravity_direction.x(), r.gravity_direction.y(),
+                            r.gravity_direction.z()};
   const PoseSlamTimings& t = r.timings;
   j["seconds"] = {{"load_clouds", t.load_clouds}, {"candidates", t.candidates},
                   {"icp", t.icp},                 {"build", t.build},

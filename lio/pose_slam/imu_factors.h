@@ -61,8 +61,13 @@ Eigen::Quaternion<T> QuaternionExp(const Eigen::Matrix<T, 3, 1>& omega) {
 //   e_p = R_i^T (p_j - p_i - v_i dt - g dt^2 / 2) - dp(b)          (m)
 // whitened by L with L^T L = Sigma^-1, Sigma the preintegration covariance
 // (same error order [e_R; e_v; e_p], right perturbation of dR).
+//
+// `extra_covariance` (9x9, same order and units) is added to Sigma: errors the
+// noise model leaves out (e.g. scale-factor and axis-misalignment errors).
 struct ImuFactor {
-  ImuFactor(const Preintegration& preintegration, const Vec3& gravity_world)
+  ImuFactor(const Preintegration& preintegration,
+            const Vec3& gravity_world,
+            const Mat9& extra_covariance = Mat9::Zero())
       : delta_rotation(preintegration.delta_rotation()),
         delta_velocity(preintegration.delta_velocity()),
         delta_position(preintegration.delta_position()),
@@ -70,7 +75,7 @@ struct ImuFactor {
         bias_hat(preintegration.bias_hat().Vector()),
         dt(preintegration.dt_s()),
         gravity(gravity_world),
-        sqrt_information(SqrtInformation(preintegration.covariance())) {}
+        sqrt_information(SqrtInformation(preintegration.covariance() + extra_covariance)) {}
 
   template <typename T>
   bool operator()(const T* const pose_i,
@@ -79,6 +84,19 @@ struct ImuFactor {
                   const T* const velocity_j,
                   const T* const bias,
                   T* residuals) const {
+    return Evaluate(pose_i, velocity_i, pose_j, velocity_j, bias,
+                    Eigen::Matrix<T, 3, 1>(gravity.cast<T>()), residuals);
+  }
+
+  // The residuals with gravity `g` (m/s^2, world frame) in place of `gravity`.
+  template <typename T>
+  bool Evaluate(const T* const pose_i,
+                const T* const velocity_i,
+                const T* const pose_j,
+                const T* const velocity_j,
+                const T* const bias,
+                const Eigen::Matrix<T, 3, 1>& g,
+                T* residuals) const {
     using Vec3T = Eigen::Matrix<T, 3, 1>;
     const Eigen::Map<const Eigen::Quaternion<T>> q_i(pose_i), q_j(pose_j);
     const Eigen::Map<const Vec3T> p_i(pose_i + 4), p_j(pose_j + 4);
@@ -95,7 +113,6 @@ struct ImuFactor {
     const Vec3T dp = delta_position.cast<T>() + J.template block<3, 6>(6, 0) * db;
 
     const Eigen::Quaternion<T> q_i_inverse = q_i.conjugate();
-    const Vec3T g = gravity.cast<T>();
     const T dt_t(dt);
     Eigen::Matrix<T, 9, 1> e;
     e.template segment<3>(0) = internal::QuaternionLog<T>(dR.conjugate() * (q_i_inverse * q_j));
@@ -109,9 +126,10 @@ struct ImuFactor {
 
   // `gravity_world`: (0, 0, -9.81) m/s^2 in lio's world frame.
   static ceres::CostFunction* Create(const Preintegration& preintegration,
-                                     const Vec3& gravity_world) {
+                                     const Vec3& gravity_world,
+                                     const Mat9& extra_covariance = Mat9::Zero()) {
     return new ceres::AutoDiffCostFunction<ImuFactor, 9, 7, 3, 7, 3, 6>(
-        new ImuFactor(preintegration, gravity_world));
+        new ImuFactor(preintegration, gravity_world, extra_covariance));
   }
 
   Quat delta_rotation;
@@ -122,6 +140,42 @@ struct ImuFactor {
   double dt;
   Vec3 gravity;
   Mat9 sqrt_information;
+
+  EIGEN_MAKE_ALIGNED_OPERATOR_NEW
+};
+
+// The IMU factor with the gravity direction as a sixth parameter block: a unit
+// vector u (3 doubles, on ceres::SphereManifold<3>), gravity = magnitude * u.
+// For a world frame whose "down" is known only approximately (lio's is levelled
+// by its first second of accelerometer data).
+struct ImuGravityFactor {
+  ImuGravityFactor(const Preintegration& preintegration,
+                   double gravity_magnitude,
+                   const Mat9& extra_covariance)
+      : imu(preintegration, Vec3::Zero(), extra_covariance), magnitude(gravity_magnitude) {}
+
+  template <typename T>
+  bool operator()(const T* const pose_i,
+                  const T* const velocity_i,
+                  const T* const pose_j,
+                  const T* const velocity_j,
+                  const T* const bias,
+                  const T* const gravity_direction,
+                  T* residuals) const {
+    const Eigen::Map<const Eigen::Matrix<T, 3, 1>> u(gravity_direction);
+    return imu.Evaluate(pose_i, velocity_i, pose_j, velocity_j, bias,
+                        Eigen::Matrix<T, 3, 1>(T(magnitude) * u), residuals);
+  }
+
+  static ceres::CostFunction* Create(const Preintegration& preintegration,
+                                     double gravity_magnitude,
+                                     const Mat9& extra_covariance = Mat9::Zero()) {
+    return new ceres::AutoDiffCostFunction<ImuGravityFactor, 9, 7, 3, 7, 3, 6, 3>(
+        new ImuGravityFactor(preintegration, gravity_magnitude, extra_covariance));
+  }
+
+  ImuFactor imu;
+  double magnitude;  // m/s^2
 
   EIGEN_MAKE_ALIGNED_OPERATOR_NEW
 };

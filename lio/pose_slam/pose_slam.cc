@@ -1,6 +1,8 @@
 #include "lio/pose_slam/pose_slam.h"
 
+#include <ceres/autodiff_cost_function.h>
 #include <ceres/normal_prior.h>
+#include <ceres/sphere_manifold.h>
 #include <fmt/format.h>
 #include <tbb/parallel_for.h>
 #include <tbb/task_arena.h>
@@ -104,6 +106,36 @@ PairResult RegisterPair(const KeyframeClouds& source,
   return out;
 }
 
+// Covariance (9x9, [e_R; e_v; e_p]) of the IMU errors the noise model leaves
+// out over [t_i, t_j] (dt), per axis (PoseSlamOptions::imu_*_error and
+// bias_instability_*): sigma_R^2 = (imu_gyro_error integral |gyro| dt)^2 +
+// (bias_instability_gyro dt)^2, sigma_v^2 = (imu_accel_error integral |accel| dt)^2
+// + (bias_instability_accel dt)^2, sigma_p = sigma_v dt / 2 (rectangle rule over
+// the samples inside the interval).
+Mat9 UnmodelledImuCovariance(const std::vector<ImuSample>& imu,
+                             TimestampNs t_i_ns,
+                             TimestampNs t_j_ns,
+                             const PoseSlamOptions& options) {
+  auto it = std::lower_bound(imu.begin(), imu.end(), t_i_ns,
+                             [](const ImuSample& s, TimestampNs t) { return s.t_ns < t; });
+  double angle = 0.0, velocity = 0.0;
+  for (; it != imu.end() && it + 1 != imu.end() && it->t_ns < t_j_ns; ++it) {
+    const double h = NsToSeconds(std::min((it + 1)->t_ns, t_j_ns) - it->t_ns);
+    angle += it->gyro.norm() * h;
+    velocity += it->accel.norm() * h;
+  }
+  const double dt = NsToSeconds(t_j_ns - t_i_ns);
+  const double sigma_r =
+      std::hypot(options.imu_gyro_error * angle, options.bias_instability_gyro * dt);
+  const double sigma_v =
+      std::hypot(options.imu_accel_error * velocity, options.bias_instability_accel * dt);
+  const double sigma_p = sigma_v * dt / 2.0;
+  Mat9 covariance = Mat9::Zero();
+  covariance.diagonal() << Vec3::Constant(sigma_r * sigma_r), Vec3::Constant(sigma_v * sigma_v),
+      Vec3::Constant(sigma_p * sigma_p);
+  return covariance;
+}
+
 }  // namespace
 
 bool PoseSlamOptions::Check() const {
@@ -119,6 +151,10 @@ bool PoseSlamOptions::Check() const {
   CHECK_OPTION_GE(odometry_sigma_rotation_deg_per_m, 0.0);
   CHECK_OPTION_GT(odometry_sigma_translation, 0.0);
   CHECK_OPTION_GE(odometry_sigma_translation_per_m, 0.0);
+  CHECK_OPTION_GE(imu_gyro_error, 0.0);
+  CHECK_OPTION_GE(imu_accel_error, 0.0);
+  CHECK_OPTION_GE(bias_instability_gyro, 0.0);
+  CHECK_OPTION_GE(bias_instability_accel, 0.0);
   CHECK_OPTION_GT(bias_prior_gyro, 0.0);
   CHECK_OPTION_GT(bias_prior_accel, 0.0);
   CHECK_OPTION_GT(gravity, 0.0);
@@ -437,8 +473,10 @@ PoseSlamResult RunPoseSlamInArena(const PoseSlamInput& input,
   // IMU: velocities, piecewise-constant biases, preintegration factors.
   std::deque<std::array<double, 3>> velocities;
   std::deque<std::array<double, 6>> biases;
-  const Vec3 gravity_world(0.0, 0.0, -options.gravity);
+  std::array<double, 3> gravity_direction = {0.0, 0.0, -1.0};
+  ceres::SphereManifold<3> sphere;
   if (options.use_imu) {
+    problem.AddParameterBlock(gravity_direction.data(), 3, &sphere);
     for (const Node& n : nodes) {
       const int s = lio.Nearest(n.t_ns, 0);
       THROW_CHECK_GE(s, 0);
@@ -474,10 +512,15 @@ PoseSlamResult RunPoseSlamInArena(const PoseSlamInput& input,
       }
     }
     for (int n = 0; n + 1 < num_nodes; ++n) {
-      problem.AddResidualBlock(ImuFactor::Create(*preintegrations[n], gravity_world), nullptr,
+      const Mat9 extra = UnmodelledImuCovariance(input.imu, node_times[n], node_times[n + 1],
+                                                 options);
+      problem.AddResidualBlock(ImuGravityFactor::Create(*preintegrations[n], options.gravity,
+                                                        extra),
+                               nullptr,
                                graph.PoseBlock(n), velocities[n].data(), graph.PoseBlock(n + 1),
                                velocities[n + 1].data(),
-                               biases[piecewise.interval_bias[n]].data());
+                               biases[piecewise.interval_bias[n]].data(),
+                               gravity_direction.data());
       ++result.num_imu_factors;
     }
     for (int b = 0; b + 1 < piecewise.num_biases(); ++b) {
@@ -515,7 +558,8 @@ PoseSlamResult RunPoseSlamInArena(const PoseSlamInput& input,
       }
     }
   }
-  graph.SetPoseConstant(0);  // gauge: the first pose (and with it gravity's direction)
+  // Gauge: the first pose; the gravity direction is estimated in its frame.
+  graph.SetPoseConstant(0);
   result.timings.build = SecondsSince(start);
 
   // First pass, outlier removal, second pass.
@@ -572,6 +616,7 @@ PoseSlamResult RunPoseSlamInArena(const PoseSlamInput& input,
     result.keyframe_covariances.push_back(covariances[k]);
   }
   for (const auto& b : biases) result.biases.push_back(Eigen::Map<const Vec6>(b.data()));
+  result.gravity_direction = Eigen::Map<const Vec3>(gravity_direction.data());
   result.trajectory = CorrectTrajectory(lio, node_times, lio_node_poses, optimised_node_poses);
   return result;
 }

@@ -15,8 +15,10 @@
 //    factors; zero-velocity and identity-pose factors at rest. Each stationary
 //    period adds two nodes without a cloud (lio's poses at its first and last
 //    scan inside it), so rests are held still even where lio made no keyframe.
-// Gauge: the first node's pose is held fixed; lio's world frame is gravity
-// aligned, so this fixes the gravity direction as well (g = (0, 0, -9.81)).
+// Gauge: the first node's pose is held at lio's. Gravity (magnitude `gravity`)
+// has its direction estimated in that frame (a unit vector starting at -z of
+// lio's world frame, which lio levels with its first second of accelerometer
+// data: scale-factor, misalignment and bias errors tilt it by up to ~1 deg).
 // Two passes: after the first solve, ICP factors whose squared Mahalanobis
 // residual exceeds outlier_chi2 are removed and the problem is solved again.
 // Covariances: marginals of the keyframe poses (ceres::Covariance, right
@@ -99,6 +101,19 @@ struct PoseSlamOptions {
   StationaryDetectionOptions stationary;
   ZeroVelocityOptions zero_velocity;
   PreintegrationOptions preintegration;
+  // Unmodelled IMU errors (scale factor, axis misalignment), added to each
+  // preintegration's covariance per axis: rotation sigma = imu_gyro_error x the
+  // integrated rotation angle (rad), velocity sigma = imu_accel_error x the
+  // integrated specific force (m/s), position sigma = velocity sigma x dt / 2.
+  // BMI085 datasheet: gyro sensitivity 1 % + cross-axis 1 %, accel 0.5 % + 0.5 %.
+  double imu_gyro_error = 0.02;    // fraction of the rotation angle
+  double imu_accel_error = 0.005;  // fraction of the integrated specific force
+  // The bias departs from its piecewise constant (temperature drift): 1-sigma of
+  // that departure, added as rotation sigma = bias_instability_gyro x dt,
+  // velocity sigma = bias_instability_accel x dt, position sigma = that x dt / 2.
+  // BMI085 temperature coefficients (0.015 deg/s/K, 0.2 mg/K) x 0.5 K.
+  double bias_instability_gyro = 1.3e-4;  // rad/s
+  double bias_instability_accel = 1e-3;   // m/s^2
   double bias_prior_gyro = 0.02;   // rad/s, 1-sigma prior of the first bias around 0
   double bias_prior_accel = 0.2;   // m/s^2, 1-sigma prior of the first bias around 0
   double gravity = 9.81;           // m/s^2, along -z of lio's world frame
@@ -136,7 +151,7 @@ struct PoseSlamTimings {  // seconds per stage
 struct PoseSlamResult {
   std::vector<TimestampNs> keyframe_times;
   std::vector<SE3> keyframe_poses;           // optimised world_from_imu
-  std::vector<Mat6> keyframe_covariances;    // marginal, right perturbation; first = 0 (gauge)
+  std::vector<Mat6> keyframe_covariances;  // marginal, right perturbation; first = 0 (gauge)
   Trajectory trajectory;                     // lio's scans corrected by the optimised nodes
   std::vector<LidarConstraintRecord> constraints;  // the kept ICP pairs (IMU frames)
   std::vector<StationaryPeriod> stationary_periods;
@@ -149,6 +164,7 @@ struct PoseSlamResult {
   bool second_pass = false;
   PoseSlamTimings timings;
   std::vector<Vec6> biases;  // per bias variable [b_g; b_a]
+  Vec3 gravity_direction = Vec3(0, 0, -1);  // estimated, unit, lio's world frame
 };
 
 struct PoseSlamCallbacks {
