@@ -5,6 +5,7 @@
 #include <ceres/problem.h>
 #include <ceres/product_manifold.h>
 #include <ceres/solver.h>
+#include <ceres/sphere_manifold.h>
 #include <gtest/gtest.h>
 
 #include <memory>
@@ -158,6 +159,46 @@ TEST(ImuFactor, JacobiansMatchNumericDifferentiation) {
                                 {&pose_manifold, nullptr, &pose_manifold, nullptr, nullptr},
                                 {i.pose, i.velocity, j.pose, j.velocity, bias.data()});
   }
+}
+
+// With the gravity direction u as a block: at u = g / |g| the residuals are
+// ImuFactor's; a tilted u changes them (gravity enters e_v and e_p); an extra
+// covariance weakens them; the Jacobians (u on the sphere) match numeric ones.
+TEST(ImuGravityFactor, MatchesImuFactorAndItsJacobians) {
+  const sim::SplineTrajectory trajectory = Walk();
+  const std::vector<ImuSample> samples = Samples(trajectory, ImuBias(), true);
+  const PoseManifold pose_manifold;
+  const ceres::SphereManifold<3> sphere;
+  const TimestampNs t_i = kStartNs + SecondsToNs(6.0), t_j = t_i + SecondsToNs(0.8);
+  const Preintegration pim = Preintegration::Integrate(samples, t_i, t_j, ImuBias(), ImuNoise());
+  std::unique_ptr<ceres::CostFunction> plain(ImuFactor::Create(pim, kGravity));
+  std::unique_ptr<ceres::CostFunction> with_gravity(
+      ImuGravityFactor::Create(pim, sim::kGravity));
+  State i = TrueState(trajectory, t_i), j = TrueState(trajectory, t_j);
+  ToBlock(PoseOf(j) * test::RandomPose(0.02, 0.05), j.pose);
+  Vec6 bias = 0.01 * Vec6::Random();
+  Vec3 down(0, 0, -1);
+  const Eigen::VectorXd r_plain =
+      Evaluate(*plain, {i.pose, i.velocity, j.pose, j.velocity, bias.data()});
+  const Eigen::VectorXd r_gravity =
+      Evaluate(*with_gravity, {i.pose, i.velocity, j.pose, j.velocity, bias.data(), down.data()});
+  EXPECT_LT((r_plain - r_gravity).norm(), 1e-9 * r_plain.norm());
+  Vec3 tilted = Vec3(0.01, 0, -1).normalized();
+  EXPECT_GT((Evaluate(*with_gravity,
+                      {i.pose, i.velocity, j.pose, j.velocity, bias.data(), tilted.data()}) -
+             r_gravity)
+                .norm(),
+            1.0);
+  Mat9 extra = Mat9::Zero();
+  extra.diagonal().setConstant(1e-2);
+  std::unique_ptr<ceres::CostFunction> weak(ImuGravityFactor::Create(pim, sim::kGravity, extra));
+  EXPECT_LT(
+      Evaluate(*weak, {i.pose, i.velocity, j.pose, j.velocity, bias.data(), down.data()}).norm(),
+      0.1 * r_gravity.norm());
+  ExpectJacobiansMatchNumeric(
+      *with_gravity,
+      {&pose_manifold, nullptr, &pose_manifold, nullptr, nullptr, &sphere},
+      {i.pose, i.velocity, j.pose, j.velocity, bias.data(), tilted.data()});
 }
 
 TEST(BiasRandomWalkFactor, WhitensTheBiasChangeByTheRandomWalk) {
