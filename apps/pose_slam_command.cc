@@ -34,9 +34,12 @@ double SecondsSince(std::chrono::steady_clock::time_point start) {
 }
 
 nlohmann::json SolveJson(const PoseGraphSolveSummary& s) {
-  return {{"converged", s.converged},      {"iterations", s.iterations},
-          {"initial_cost", s.initial_cost}, {"final_cost", s.final_cost},
-          {"seconds", s.seconds},          {"linear_solver", s.linear_solver},
+  return {{"converged", s.converged},
+          {"iterations", s.iterations},
+          {"initial_cost", s.initial_cost},
+          {"final_cost", s.final_cost},
+          {"seconds", s.seconds},
+          {"linear_solver", s.linear_solver},
           {"message", s.message}};
 }
 
@@ -75,13 +78,17 @@ nlohmann::json SummaryJson(const PoseSlamResult& r, double map_s, double total_s
     biases.push_back({{"gyro", {b(0), b(1), b(2)}}, {"accel", {b(3), b(4), b(5)}}});
   }
   j["biases"] = biases;
-  j["gravity_direction"] = {r.gravity_direction.x(), r.gravity_direction.y(),
-                            r.gravity_direction.z()};
+  j["gravity_direction"] = {
+      r.gravity_direction.x(), r.gravity_direction.y(), r.gravity_direction.z()};
   const PoseSlamTimings& t = r.timings;
-  j["seconds"] = {{"load_clouds", t.load_clouds}, {"candidates", t.candidates},
-                  {"icp", t.icp},                 {"build", t.build},
-                  {"solve", t.solve},             {"second_solve", t.second_solve},
-                  {"covariances", t.covariances}, {"map", map_s},
+  j["seconds"] = {{"load_clouds", t.load_clouds},
+                  {"candidates", t.candidates},
+                  {"icp", t.icp},
+                  {"build", t.build},
+                  {"solve", t.solve},
+                  {"second_solve", t.second_solve},
+                  {"covariances", t.covariances},
+                  {"map", map_s},
                   {"total", total_s}};
   return j;
 }
@@ -98,13 +105,16 @@ int RunPoseSlam(int argc, char** argv) {
   double map_voxel = 0.2;
   PoseSlamOptions pose_slam;
   options.AddRequiredString("input_path", &input_path, "sequence folder (rig.yaml, imu0/)");
-  options.AddRequiredString("lio_path", &lio_path,
-                            "`lisfm lio` output folder (trajectory.txt, keyframes/)");
+  options.AddRequiredString(
+      "lio_path", &lio_path, "`lisfm lio` output folder (trajectory.txt, keyframes/)");
   options.AddRequiredString("output_path", &output_path, "output folder");
   options.AddBool("overwrite", &overwrite, "replace an earlier lisfm output at --output_path");
-  options.AddInt("lidar", &lidar, "index of the LiDAR of the keyframe clouds (its extrinsic)",
+  options.AddInt("lidar",
+                 &lidar,
+                 "index of the LiDAR of the keyframe clouds (its extrinsic)",
                  OptionRange::AtLeast(0));
-  options.AddDouble("map_voxel_size", &map_voxel,
+  options.AddDouble("map_voxel_size",
+                    &map_voxel,
                     "m, voxel size of the written map.pcd (0 = no downsampling)",
                     OptionRange::AtLeast(0));
   AddPoseSlamOptions(&options, &pose_slam);
@@ -116,9 +126,10 @@ int RunPoseSlam(int argc, char** argv) {
   LogStage("pose_slam: reading " + input_path + " and " + lio_path);
   const Sequence seq = ReadSequence(input_path);
   if (lidar >= static_cast<int>(seq.rig.lidars.size())) {
-    throw InputError(input_path + "/rig.yaml", "lidars",
-                     fmt::format("--lidar {} but the rig has {} LiDAR(s)", lidar,
-                                 seq.rig.lidars.size()));
+    throw InputError(
+        input_path + "/rig.yaml",
+        "lidars",
+        fmt::format("--lidar {} but the rig has {} LiDAR(s)", lidar, seq.rig.lidars.size()));
   }
   PoseSlamInput input;
   input.lio = ReadLioOutput(lio_path);
@@ -136,8 +147,10 @@ int RunPoseSlam(int argc, char** argv) {
       for (ImuSample& s : input.imu) s.accel *= pose_slam.gravity;
     }
   }
-  LogInfo("pose_slam: {} keyframes, {} lio poses, {} IMU samples", input.lio.keyframes.size(),
-          input.lio.trajectory.size(), input.imu.size());
+  LogInfo("pose_slam: {} keyframes, {} lio poses, {} IMU samples",
+          input.lio.keyframes.size(),
+          input.lio.trajectory.size(),
+          input.imu.size());
 
   std::unique_ptr<ProgressReporter> progress;
   PoseSlamCallbacks callbacks;
@@ -191,15 +204,30 @@ int RunPoseSlam(int argc, char** argv) {
       "{} degenerate, {} off lio, {} residual outliers); factors: {} odometry, {} ICP, {} IMU, {} "
       "zero velocity; final cost {:.6g} ({}); {:.1f} s (ICP {:.1f} s, solve {:.1f} s, "
       "covariances {:.1f} s); outputs in {}",
-      result.keyframe_times.size(), result.num_nodes, result.stationary_periods.size(),
-      result.num_biases, p.candidates, p.inside_stationary, p.registered, p.kept, p.failed,
-      p.unconverged, p.degenerate, p.lio_difference, p.residual_outliers,
-      result.num_odometry_factors, result.num_icp_factors, result.num_imu_factors,
+      result.keyframe_times.size(),
+      result.num_nodes,
+      result.stationary_periods.size(),
+      result.num_biases,
+      p.candidates,
+      p.inside_stationary,
+      p.registered,
+      p.kept,
+      p.failed,
+      p.unconverged,
+      p.degenerate,
+      p.lio_difference,
+      p.residual_outliers,
+      result.num_odometry_factors,
+      result.num_icp_factors,
+      result.num_imu_factors,
       result.num_zero_velocity_factors,
       result.second_pass ? result.second_solve.final_cost : result.solve.final_cost,
-      result.second_pass ? result.second_solve.message : result.solve.message, total_s,
-      result.timings.icp, result.timings.solve + result.timings.second_solve,
-      result.timings.covariances, output_path);
+      result.second_pass ? result.second_solve.message : result.solve.message,
+      total_s,
+      result.timings.icp,
+      result.timings.solve + result.timings.second_solve,
+      result.timings.covariances,
+      output_path);
   return 0;
 }
 

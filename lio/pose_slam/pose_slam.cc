@@ -116,8 +116,8 @@ Mat9 UnmodelledImuCovariance(const std::vector<ImuSample>& imu,
                              TimestampNs t_i_ns,
                              TimestampNs t_j_ns,
                              const PoseSlamOptions& options) {
-  auto it = std::lower_bound(imu.begin(), imu.end(), t_i_ns,
-                             [](const ImuSample& s, TimestampNs t) { return s.t_ns < t; });
+  auto it = std::lower_bound(
+      imu.begin(), imu.end(), t_i_ns, [](const ImuSample& s, TimestampNs t) { return s.t_ns < t; });
   double angle = 0.0, velocity = 0.0;
   for (; it != imu.end() && it + 1 != imu.end() && it->t_ns < t_j_ns; ++it) {
     const double h = NsToSeconds(std::min((it + 1)->t_ns, t_j_ns) - it->t_ns);
@@ -187,9 +187,10 @@ LioOutput ReadLioOutput(const std::string& lio_path) {
     const std::string where = fmt::format("line {}", line_number);
     const std::vector<std::string> fields = SplitString(line, ",");
     if (fields.size() != 8) {
-      throw InputError(csv_path, where,
-                       fmt::format("expected 8 fields t_ns,tx,ty,tz,qx,qy,qz,qw, found {}",
-                                   fields.size()));
+      throw InputError(
+          csv_path,
+          where,
+          fmt::format("expected 8 fields t_ns,tx,ty,tz,qx,qy,qz,qw, found {}", fields.size()));
     }
     LioKeyframe keyframe;
     double v[7];
@@ -208,41 +209,48 @@ LioOutput ReadLioOutput(const std::string& lio_path) {
     }
     const Quat q(v[6], v[3], v[4], v[5]);
     if (std::abs(q.norm() - 1.0) > 1e-6) {
-      throw InputError(csv_path, where,
-                       fmt::format("quaternion norm {:.9f}, expected 1", q.norm()));
+      throw InputError(
+          csv_path, where, fmt::format("quaternion norm {:.9f}, expected 1", q.norm()));
     }
     keyframe.world_from_imu = SE3(q.normalized(), Vec3(v[0], v[1], v[2]));
     if (!lio.keyframes.empty() && keyframe.t_ns <= lio.keyframes.back().t_ns) {
-      throw InputError(csv_path, where,
-                       fmt::format("stamp {} does not increase (previous {})", keyframe.t_ns,
+      throw InputError(csv_path,
+                       where,
+                       fmt::format("stamp {} does not increase (previous {})",
+                                   keyframe.t_ns,
                                    lio.keyframes.back().t_ns));
     }
     const int k = lio.trajectory.Nearest(keyframe.t_ns, 0);
     if (k < 0) {
-      throw InputError(csv_path, where,
+      throw InputError(csv_path,
+                       where,
                        fmt::format("keyframe stamp {} ns has no pose in {}: the keyframes do not "
                                    "belong to this trajectory",
-                                   keyframe.t_ns, trajectory_path));
+                                   keyframe.t_ns,
+                                   trajectory_path));
     }
     const SE3& pose = lio.trajectory[k].pose;
     const double dt = (pose.translation() - keyframe.world_from_imu.translation()).norm();
     const double dr = so3::AngularDistance(pose.rotation(), keyframe.world_from_imu.rotation());
     if (dt > 1e-6 || dr > 1e-6) {
-      throw InputError(csv_path, where,
+      throw InputError(csv_path,
+                       where,
                        fmt::format("keyframe pose at {} ns differs from {} by {:.3g} m, {:.3g} "
                                    "rad: the keyframes do not belong to this trajectory",
-                                   keyframe.t_ns, trajectory_path, dt, dr));
+                                   keyframe.t_ns,
+                                   trajectory_path,
+                                   dt,
+                                   dr));
     }
-    keyframe.cloud_path =
-        JoinPaths(lio_path, fmt::format("keyframes/{}.pcd", keyframe.t_ns));
+    keyframe.cloud_path = JoinPaths(lio_path, fmt::format("keyframes/{}.pcd", keyframe.t_ns));
     if (!FileExists(keyframe.cloud_path)) {
       throw InputError(csv_path, where, "keyframe cloud " + keyframe.cloud_path + " not found");
     }
     lio.keyframes.push_back(std::move(keyframe));
   }
   if (lio.keyframes.size() < 2) {
-    throw InputError(csv_path, "",
-                     fmt::format("expected at least 2 keyframes, found {}", lio.keyframes.size()));
+    throw InputError(
+        csv_path, "", fmt::format("expected at least 2 keyframes, found {}", lio.keyframes.size()));
   }
   return lio;
 }
@@ -343,8 +351,8 @@ PoseSlamResult RunPoseSlamInArena(const PoseSlamInput& input,
         ++result.num_rest_nodes;
       }
     }
-    std::sort(nodes.begin(), nodes.end(),
-              [](const Node& a, const Node& b) { return a.t_ns < b.t_ns; });
+    std::sort(
+        nodes.begin(), nodes.end(), [](const Node& a, const Node& b) { return a.t_ns < b.t_ns; });
   }
   const int num_nodes = static_cast<int>(nodes.size());
   result.num_nodes = num_nodes;
@@ -415,8 +423,8 @@ PoseSlamResult RunPoseSlamInArena(const PoseSlamInput& input,
     });
     tbb::parallel_for(begin, end, [&](size_t p) {
       const auto [i, j] = pairs[p];
-      const int t = static_cast<int>(std::lower_bound(targets.begin(), targets.end(), i) -
-                                     targets.begin());
+      const int t =
+          static_cast<int>(std::lower_bound(targets.begin(), targets.end(), i) - targets.begin());
       const SE3 lio_i_from_j = keyframes[i].world_from_imu.Inverse() * keyframes[j].world_from_imu;
       const uint64_t seed = options.bayesian.sgld.seed * 1000003ull +
                             static_cast<uint64_t>(i) * 100003ull + static_cast<uint64_t>(j);
@@ -457,11 +465,20 @@ PoseSlamResult RunPoseSlamInArena(const PoseSlamInput& input,
   for (size_t p = 0; p < pairs.size(); ++p) {
     const PairResult& r = pair_results[p];
     switch (r.outcome) {
-      case PairResult::Outcome::kFailed: ++result.pairs.failed; continue;
-      case PairResult::Outcome::kUnconverged: ++result.pairs.unconverged; continue;
-      case PairResult::Outcome::kDegenerate: ++result.pairs.degenerate; continue;
-      case PairResult::Outcome::kLioDifference: ++result.pairs.lio_difference; continue;
-      case PairResult::Outcome::kKept: break;
+      case PairResult::Outcome::kFailed:
+        ++result.pairs.failed;
+        continue;
+      case PairResult::Outcome::kUnconverged:
+        ++result.pairs.unconverged;
+        continue;
+      case PairResult::Outcome::kDegenerate:
+        ++result.pairs.degenerate;
+        continue;
+      case PairResult::Outcome::kLioDifference:
+        ++result.pairs.lio_difference;
+        continue;
+      case PairResult::Outcome::kKept:
+        break;
     }
     icp_factors.push_back(graph.AddRelativePoseFactor(node_of_keyframe[pairs[p].first],
                                                       node_of_keyframe[pairs[p].second],
@@ -484,9 +501,9 @@ PoseSlamResult RunPoseSlamInArena(const PoseSlamInput& input,
       velocities.push_back({v.x(), v.y(), v.z()});
       problem.AddParameterBlock(velocities.back().data(), 3);
     }
-    const PiecewiseBias piecewise =
-        options.piecewise_bias ? AssignPiecewiseBias(node_times, result.stationary_periods)
-                               : AssignPiecewiseBias(node_times, {});
+    const PiecewiseBias piecewise = options.piecewise_bias
+                                        ? AssignPiecewiseBias(node_times, result.stationary_periods)
+                                        : AssignPiecewiseBias(node_times, {});
     result.num_biases = piecewise.num_biases();
     for (int b = 0; b < piecewise.num_biases(); ++b) {
       biases.push_back({0, 0, 0, 0, 0, 0});
@@ -496,9 +513,13 @@ PoseSlamResult RunPoseSlamInArena(const PoseSlamInput& input,
     std::vector<std::string> errors(num_nodes - 1);
     tbb::parallel_for(0, num_nodes - 1, [&](int n) {
       try {
-        preintegrations[n] = std::make_unique<Preintegration>(
-            Preintegration::Integrate(input.imu, node_times[n], node_times[n + 1], ImuBias(),
-                                      input.imu_noise, options.preintegration));
+        preintegrations[n] =
+            std::make_unique<Preintegration>(Preintegration::Integrate(input.imu,
+                                                                       node_times[n],
+                                                                       node_times[n + 1],
+                                                                       ImuBias(),
+                                                                       input.imu_noise,
+                                                                       options.preintegration));
       } catch (const InputError& e) {
         errors[n] = e.what();
       }
@@ -507,27 +528,32 @@ PoseSlamResult RunPoseSlamInArena(const PoseSlamInput& input,
       if (!errors[n].empty()) {
         throw InputError(input.imu_path,
                          fmt::format("between the keyframes at {:.3f} s and {:.3f} s",
-                                     NsToSeconds(node_times[n]), NsToSeconds(node_times[n + 1])),
+                                     NsToSeconds(node_times[n]),
+                                     NsToSeconds(node_times[n + 1])),
                          errors[n]);
       }
     }
     for (int n = 0; n + 1 < num_nodes; ++n) {
-      const Mat9 extra = UnmodelledImuCovariance(input.imu, node_times[n], node_times[n + 1],
-                                                 options);
-      problem.AddResidualBlock(ImuGravityFactor::Create(*preintegrations[n], options.gravity,
-                                                        extra),
-                               nullptr,
-                               graph.PoseBlock(n), velocities[n].data(), graph.PoseBlock(n + 1),
-                               velocities[n + 1].data(),
-                               biases[piecewise.interval_bias[n]].data(),
-                               gravity_direction.data());
+      const Mat9 extra =
+          UnmodelledImuCovariance(input.imu, node_times[n], node_times[n + 1], options);
+      problem.AddResidualBlock(
+          ImuGravityFactor::Create(*preintegrations[n], options.gravity, extra),
+          nullptr,
+          graph.PoseBlock(n),
+          velocities[n].data(),
+          graph.PoseBlock(n + 1),
+          velocities[n + 1].data(),
+          biases[piecewise.interval_bias[n]].data(),
+          gravity_direction.data());
       ++result.num_imu_factors;
     }
     for (int b = 0; b + 1 < piecewise.num_biases(); ++b) {
       problem.AddResidualBlock(
           BiasRandomWalkFactor::Create(input.imu_noise,
                                        BiasRandomWalkSeconds(piecewise, node_times, b)),
-          nullptr, biases[b].data(), biases[b + 1].data());
+          nullptr,
+          biases[b].data(),
+          biases[b + 1].data());
       ++result.num_bias_random_walk_factors;
     }
     // The first bias around zero (datasheet offsets): conditions a bias that a
@@ -537,7 +563,8 @@ PoseSlamResult RunPoseSlamInArena(const PoseSlamInput& input,
         Vec3::Constant(1.0 / options.bias_prior_accel);
     problem.AddResidualBlock(
         new ceres::NormalPrior(prior_inverse_sigma.asDiagonal().toDenseMatrix(), Vec6::Zero()),
-        nullptr, biases.front().data());
+        nullptr,
+        biases.front().data());
   }
   // Rests: zero velocity at each node inside one, identity between consecutive
   // nodes of the same one.
@@ -546,14 +573,16 @@ PoseSlamResult RunPoseSlamInArena(const PoseSlamInput& input,
       const int period = StationaryPeriodIndex(result.stationary_periods, node_times[n]);
       if (period < 0) continue;
       if (options.use_imu) {
-        problem.AddResidualBlock(ZeroVelocityFactor::Create(options.zero_velocity), nullptr,
-                                 velocities[n].data());
+        problem.AddResidualBlock(
+            ZeroVelocityFactor::Create(options.zero_velocity), nullptr, velocities[n].data());
         ++result.num_zero_velocity_factors;
       }
       if (n + 1 < num_nodes &&
           StationaryPeriodIndex(result.stationary_periods, node_times[n + 1]) == period) {
-        problem.AddResidualBlock(StationaryPoseFactor::Create(options.zero_velocity), nullptr,
-                                 graph.PoseBlock(n), graph.PoseBlock(n + 1));
+        problem.AddResidualBlock(StationaryPoseFactor::Create(options.zero_velocity),
+                                 nullptr,
+                                 graph.PoseBlock(n),
+                                 graph.PoseBlock(n + 1));
         ++result.num_stationary_pose_factors;
       }
     }

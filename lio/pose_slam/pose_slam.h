@@ -77,16 +77,16 @@ struct PoseSlamOptions {
   int min_index_step = 5;   // smallest index difference of a pair
   int max_index_step = 25;  // largest index difference of a pair
   // Factor groups (the benchmark's ablation rows switch them off).
-  bool use_icp_pairs = true;        // Bayesian ICP factors between candidate pairs
-  bool use_imu = true;              // IMU preintegration factors, velocities, biases
-  bool piecewise_bias = true;       // a new bias variable at each rest (else one for all)
-  bool use_zero_velocity = true;    // zero-velocity / identity-pose factors at rests
+  bool use_icp_pairs = true;      // Bayesian ICP factors between candidate pairs
+  bool use_imu = true;            // IMU preintegration factors, velocities, biases
+  bool piecewise_bias = true;     // a new bias variable at each rest (else one for all)
+  bool use_zero_velocity = true;  // zero-velocity / identity-pose factors at rests
   // Bayesian ICP per pair.
-  BayesianIcpOptions bayesian;       // the icp module's calibrated defaults
-  double source_voxel_size = 0.25;   // m, source cloud downsampling (lisfm icp's default)
-  double target_voxel_size = 0.1;    // m, target cloud downsampling (lisfm icp's default)
-  double max_translation_difference = 0.04;  // m, from lio's relative pose, else rejected
-  double max_rotation_difference_deg = 5.0;  // deg, from lio's relative pose, else rejected
+  BayesianIcpOptions bayesian;                // the icp module's calibrated defaults
+  double source_voxel_size = 0.25;            // m, source cloud downsampling (lisfm icp's default)
+  double target_voxel_size = 0.1;             // m, target cloud downsampling (lisfm icp's default)
+  double max_translation_difference = 0.04;   // m, from lio's relative pose, else rejected
+  double max_rotation_difference_deg = 5.0;   // deg, from lio's relative pose, else rejected
   RobustLossOptions icp_loss{"cauchy", 3.0};  // on the ICP factors (scale in sigmas)
   double outlier_chi2 = 22.46;  // second pass drops ICP factors above (chi2(6) 99.9 %)
   // Odometry: lio's relative pose between consecutive nodes, 1-sigma per axis
@@ -114,9 +114,9 @@ struct PoseSlamOptions {
   // BMI085 temperature coefficients (0.015 deg/s/K, 0.2 mg/K) x 0.5 K.
   double bias_instability_gyro = 1.3e-4;  // rad/s
   double bias_instability_accel = 1e-3;   // m/s^2
-  double bias_prior_gyro = 0.02;   // rad/s, 1-sigma prior of the first bias around 0
-  double bias_prior_accel = 0.2;   // m/s^2, 1-sigma prior of the first bias around 0
-  double gravity = 9.81;           // m/s^2, along -z of lio's world frame
+  double bias_prior_gyro = 0.02;          // rad/s, 1-sigma prior of the first bias around 0
+  double bias_prior_accel = 0.2;          // m/s^2, 1-sigma prior of the first bias around 0
+  double gravity = 9.81;                  // m/s^2, along -z of lio's world frame
   PoseGraphSolverOptions solver;
   int num_threads = -1;  // threads of the ICP pairs and preintegration (-1 = all cores)
   bool Check() const;
@@ -126,7 +126,7 @@ struct PoseSlamInput {
   LioOutput lio;
   std::vector<ImuSample> imu;  // m/s^2 and rad/s, sorted
   ImuNoise imu_noise;
-  SE3 imu_from_lidar;  // of the LiDAR the keyframe clouds came from (view gates)
+  SE3 imu_from_lidar;    // of the LiDAR the keyframe clouds came from (view gates)
   std::string imu_path;  // named in IMU errors (e.g. SEQ/imu0/data.csv)
 };
 
@@ -150,9 +150,9 @@ struct PoseSlamTimings {  // seconds per stage
 
 struct PoseSlamResult {
   std::vector<TimestampNs> keyframe_times;
-  std::vector<SE3> keyframe_poses;           // optimised world_from_imu
+  std::vector<SE3> keyframe_poses;         // optimised world_from_imu
   std::vector<Mat6> keyframe_covariances;  // marginal, right perturbation; first = 0 (gauge)
-  Trajectory trajectory;                     // lio's scans corrected by the optimised nodes
+  Trajectory trajectory;                   // lio's scans corrected by the optimised nodes
   std::vector<LidarConstraintRecord> constraints;  // the kept ICP pairs (IMU frames)
   std::vector<StationaryPeriod> stationary_periods;
   PoseSlamPairCounts pairs;
@@ -163,14 +163,14 @@ struct PoseSlamResult {
   PoseGraphSolveSummary solve, second_solve;  // second_solve.iterations = 0 when not run
   bool second_pass = false;
   PoseSlamTimings timings;
-  std::vector<Vec6> biases;  // per bias variable [b_g; b_a]
+  std::vector<Vec6> biases;                 // per bias variable [b_g; b_a]
   Vec3 gravity_direction = Vec3(0, 0, -1);  // estimated, unit, lio's world frame
 };
 
 struct PoseSlamCallbacks {
   std::function<void(const std::string&)> on_stage;  // a stage begins
-  std::function<void(int64_t)> on_icp_start;          // number of pairs to register
-  std::function<void()> on_icp_pair;                  // one pair done (any thread)
+  std::function<void(int64_t)> on_icp_start;         // number of pairs to register
+  std::function<void()> on_icp_pair;                 // one pair done (any thread)
 };
 
 // Runs the whole back end. Throws InputError for an unreadable keyframe cloud

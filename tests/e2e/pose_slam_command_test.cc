@@ -54,11 +54,11 @@ class PoseSlamCommandTest : public ::testing::Test {
   // ATE RMSE (m, SE(3) alignment) of `estimate` against the ground truth.
   static double Ate(const std::string& estimate) {
     std::string out;
-    EXPECT_EQ(test::RunCommand(test::LisfmBinary() + " evaluate --reference_path " +
-                                   dir_->File("seq/groundtruth.txt") + " --estimate_path " +
-                                   estimate,
-                               &out),
-              0)
+    EXPECT_EQ(
+        test::RunCommand(test::LisfmBinary() + " evaluate --reference_path " +
+                             dir_->File("seq/groundtruth.txt") + " --estimate_path " + estimate,
+                         &out),
+        0)
         << out;
     std::smatch match;
     const std::regex ate("ATE rmse ([0-9.]+) m");
@@ -107,9 +107,14 @@ TEST_F(PoseSlamCommandTest, WritesEveryOutput) {
   std::string out;
   ASSERT_EQ(test::RunCommand(PoseSlam(dir_->File("seq"), dir_->File("lio"), o), &out), 0) << out;
   EXPECT_NE(out.find("pose_slam summary"), std::string::npos) << out;
-  for (const char* f : {"trajectory.txt", "keyframes.txt", "constraints.txt",
-                        "keyframe_covariances.txt", "map.pcd", "pose_slam_summary.json",
-                        "pose_slam_config.yaml", kOutputMarkerName}) {
+  for (const char* f : {"trajectory.txt",
+                        "keyframes.txt",
+                        "constraints.txt",
+                        "keyframe_covariances.txt",
+                        "map.pcd",
+                        "pose_slam_summary.json",
+                        "pose_slam_config.yaml",
+                        kOutputMarkerName}) {
     EXPECT_TRUE(FileExists(o + "/" + f)) << f;
   }
   // One pose per lio scan, at lio's stamps.
@@ -129,7 +134,8 @@ TEST_F(PoseSlamCommandTest, WritesEveryOutput) {
     EXPECT_GT(covariances[k].covariance.diagonal().minCoeff(), 0.0) << k;
   }
   // Constraints join keyframe stamps, i before j.
-  const std::vector<LidarConstraintRecord> constraints = ReadLidarConstraints(o + "/constraints.txt");
+  const std::vector<LidarConstraintRecord> constraints =
+      ReadLidarConstraints(o + "/constraints.txt");
   EXPECT_GT(constraints.size(), 2 * keyframes.size());
   for (const LidarConstraintRecord& c : constraints) {
     EXPECT_GE(keyframes.Nearest(c.t_i_ns, 0), 0);
@@ -137,8 +143,12 @@ TEST_F(PoseSlamCommandTest, WritesEveryOutput) {
     EXPECT_LT(c.t_i_ns, c.t_j_ns);
   }
   const std::string summary = ReadFile(o + "/pose_slam_summary.json");
-  for (const char* key : {"\"pairs\"", "\"factors\"", "\"stationary_periods\"", "\"seconds\"",
-                          "\"final_cost\"", "\"rejected_lio_difference\""}) {
+  for (const char* key : {"\"pairs\"",
+                          "\"factors\"",
+                          "\"stationary_periods\"",
+                          "\"seconds\"",
+                          "\"final_cost\"",
+                          "\"rejected_lio_difference\""}) {
     EXPECT_NE(summary.find(key), std::string::npos) << key;
   }
   // Close to lio on an undisturbed walk, where lio's ATE is ~2 mm and there is
@@ -165,27 +175,30 @@ TEST_F(PoseSlamCommandTest, CorrectsInjectedYawDrift) {
   };
   const std::string drifted = EditedCopy(dir_->File("lio"), "lio_drift", "", nullptr);
   Trajectory drifted_trajectory;
-  for (const StampedPose& p : lio.poses()) drifted_trajectory.PushBack({p.t_ns, drift(p.t_ns, p.pose)});
+  for (const StampedPose& p : lio.poses())
+    drifted_trajectory.PushBack({p.t_ns, drift(p.t_ns, p.pose)});
   WriteTum(drifted + "/trajectory.txt", drifted_trajectory);
   std::ostringstream csv;
   csv << "#t_ns,tx,ty,tz,qx,qy,qz,qw\n";
-  for (const std::string& line : SplitString(ReadFile(drifted + "/keyframes/keyframes.csv"), "\n")) {
+  for (const std::string& line :
+       SplitString(ReadFile(drifted + "/keyframes/keyframes.csv"), "\n")) {
     if (line.empty() || line[0] == '#') continue;
     const TimestampNs t_ns = std::stoll(SplitString(line, ",")[0]);
     const SE3& pose = drifted_trajectory[drifted_trajectory.Nearest(t_ns, 0)].pose;
     csv << t_ns << std::setprecision(12) << "," << pose.translation().x() << ","
         << pose.translation().y() << "," << pose.translation().z() << "," << pose.rotation().x()
-        << "," << pose.rotation().y() << "," << pose.rotation().z() << ","
-        << pose.rotation().w() << "\n";
+        << "," << pose.rotation().y() << "," << pose.rotation().z() << "," << pose.rotation().w()
+        << "\n";
   }
   test::WriteText(drifted + "/keyframes/keyframes.csv", csv.str());
 
   const std::string o = dir_->File("out_drift");
   std::string out;
-  ASSERT_EQ(test::RunCommand(PoseSlam(dir_->File("seq"), drifted, o,
-                                      "--PoseSlam.max_translation_difference 0.3"),
-                             &out),
-            0)
+  ASSERT_EQ(
+      test::RunCommand(
+          PoseSlam(dir_->File("seq"), drifted, o, "--PoseSlam.max_translation_difference 0.3"),
+          &out),
+      0)
       << out;
   const double ate_lio = Ate(dir_->File("lio/trajectory.txt"));
   const double ate_drifted = Ate(drifted + "/trajectory.txt");
@@ -204,15 +217,19 @@ TEST_F(PoseSlamCommandTest, CorrectsInjectedYawDrift) {
 TEST_F(PoseSlamCommandTest, DeterministicAcrossThreadCounts) {
   std::string out;
   const std::string one = dir_->File("threads1"), two = dir_->File("threads2");
-  ASSERT_EQ(test::RunCommand(PoseSlam(dir_->File("seq"), dir_->File("lio"), one,
-                                      "--num_threads 1 --Solver.num_threads 1"),
-                             &out),
-            0)
+  ASSERT_EQ(
+      test::RunCommand(
+          PoseSlam(
+              dir_->File("seq"), dir_->File("lio"), one, "--num_threads 1 --Solver.num_threads 1"),
+          &out),
+      0)
       << out;
-  ASSERT_EQ(test::RunCommand(PoseSlam(dir_->File("seq"), dir_->File("lio"), two,
-                                      "--num_threads 2 --Solver.num_threads 2"),
-                             &out),
-            0)
+  ASSERT_EQ(
+      test::RunCommand(
+          PoseSlam(
+              dir_->File("seq"), dir_->File("lio"), two, "--num_threads 2 --Solver.num_threads 2"),
+          &out),
+      0)
       << out;
   for (const char* f :
        {"trajectory.txt", "keyframes.txt", "constraints.txt", "keyframe_covariances.txt"}) {
