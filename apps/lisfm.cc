@@ -28,6 +28,10 @@ const std::vector<Command>& Commands() {
        "optimise a g2o pose graph (2D/3D): chordal initialisation, then Levenberg-Marquardt on "
        "SE-Sync's objective",
        &RunPoseGraph},
+      {"pose_slam",
+       "batch pose graph on lio's output: Bayesian ICP pairs, IMU preintegration, zero velocity "
+       "at rests",
+       &RunPoseSlam},
       {"model_converter", "convert a COLMAP sparse model between BIN, TXT and PLY",
        &RunModelConverter},
       {"model_analyzer", "print COLMAP model statistics (as colmap model_analyzer)",

@@ -533,6 +533,105 @@ void AddPoseGraphOptions(OptionManager* options, G2oOptimizationOptions* pose_gr
   options->AddStructCheck([pose_graph] { return pose_graph->Check(); });
 }
 
+void AddPoseSlamOptions(OptionManager* options, PoseSlamOptions* pose_slam) {
+  PoseSlamOptions* o = pose_slam;
+  options->AddInt("PoseSlam.knn", &o->knn, "candidate pairs: nearest keyframes by position",
+                  R::AtLeast(1));
+  options->AddInt("PoseSlam.min_index_step", &o->min_index_step,
+                  "candidate pairs: smallest keyframe index difference", R::AtLeast(1));
+  options->AddInt("PoseSlam.max_index_step", &o->max_index_step,
+                  "candidate pairs: largest keyframe index difference", R::AtLeast(1));
+  options->AddBool("PoseSlam.use_icp_pairs", &o->use_icp_pairs,
+                   "Bayesian ICP factors between the candidate pairs");
+  options->AddBool("PoseSlam.use_imu", &o->use_imu,
+                   "IMU preintegration factors with velocities and biases");
+  options->AddBool("PoseSlam.piecewise_bias", &o->piecewise_bias,
+                   "a new bias variable at each rest (0: one bias for the recording)");
+  options->AddBool("PoseSlam.use_zero_velocity", &o->use_zero_velocity,
+                   "zero-velocity and identity-pose factors at rests");
+  options->AddDouble("PoseSlam.source_voxel_size", &o->source_voxel_size,
+                     "m, source cloud downsampling of the pair registration", R::GreaterThan(0));
+  options->AddDouble("PoseSlam.target_voxel_size", &o->target_voxel_size,
+                     "m, target cloud downsampling of the pair registration", R::GreaterThan(0));
+  options->AddDouble("PoseSlam.max_translation_difference", &o->max_translation_difference,
+                     "m, reject an ICP pair farther from lio's relative pose", R::GreaterThan(0));
+  options->AddDouble("PoseSlam.max_rotation_difference_deg", &o->max_rotation_difference_deg,
+                     "deg, reject an ICP pair farther from lio's relative pose",
+                     R::GreaterThan(0));
+  options->AddChoice("PoseSlam.icp_loss", &o->icp_loss.kernel, {"none", "huber", "cauchy"},
+                     "robust loss on the ICP factors");
+  options->AddDouble("PoseSlam.icp_loss_scale", &o->icp_loss.scale,
+                     "residual norm (sigmas) where the ICP loss bends", R::GreaterThan(0));
+  options->AddDouble("PoseSlam.outlier_chi2", &o->outlier_chi2,
+                     "second pass without ICP factors whose squared normalised residual "
+                     "exceeds this",
+                     R::GreaterThan(0));
+  options->AddDouble("PoseSlam.odometry_sigma_rotation_deg", &o->odometry_sigma_rotation_deg,
+                     "deg, 1-sigma of lio's relative rotation between consecutive keyframes "
+                     "(floor)",
+                     R::GreaterThan(0));
+  options->AddDouble("PoseSlam.odometry_sigma_rotation_deg_per_m",
+                     &o->odometry_sigma_rotation_deg_per_m,
+                     "deg per m travelled, added to the odometry rotation sigma", R::AtLeast(0));
+  options->AddDouble("PoseSlam.odometry_sigma_translation", &o->odometry_sigma_translation,
+                     "m, 1-sigma of lio's relative translation between consecutive keyframes "
+                     "(floor)",
+                     R::GreaterThan(0));
+  options->AddDouble("PoseSlam.odometry_sigma_translation_per_m",
+                     &o->odometry_sigma_translation_per_m,
+                     "m per m travelled, added to the odometry translation sigma", R::AtLeast(0));
+  options->AddDouble("PoseSlam.imu_gyro_error", &o->imu_gyro_error,
+                     "unmodelled gyro error (scale, misalignment) as a fraction of the rotation "
+                     "angle between keyframes",
+                     R::AtLeast(0));
+  options->AddDouble("PoseSlam.imu_accel_error", &o->imu_accel_error,
+                     "unmodelled accelerometer error as a fraction of the integrated specific "
+                     "force between keyframes",
+                     R::AtLeast(0));
+  options->AddDouble("PoseSlam.bias_instability_gyro", &o->bias_instability_gyro,
+                     "rad/s, 1-sigma departure of the gyro bias from its piecewise constant",
+                     R::AtLeast(0));
+  options->AddDouble("PoseSlam.bias_instability_accel", &o->bias_instability_accel,
+                     "m/s^2, 1-sigma departure of the accelerometer bias from its piecewise "
+                     "constant",
+                     R::AtLeast(0));
+  options->AddDouble("PoseSlam.bias_prior_gyro", &o->bias_prior_gyro,
+                     "rad/s, 1-sigma prior of the first gyro bias around 0", R::GreaterThan(0));
+  options->AddDouble("PoseSlam.bias_prior_accel", &o->bias_prior_accel,
+                     "m/s^2, 1-sigma prior of the first accelerometer bias around 0",
+                     R::GreaterThan(0));
+  options->AddDouble("PoseSlam.gravity", &o->gravity, "m/s^2, along -z of lio's world frame",
+                     R::GreaterThan(0));
+  options->AddDouble("PoseSlam.max_imu_gap", &o->preintegration.max_sample_gap_s,
+                     "s, a longer gap between IMU samples between keyframes is an error",
+                     R::GreaterThan(0));
+  StationaryDetectionOptions* s = &o->stationary;
+  options->AddDouble("Stationary.window", &s->window_s, "s, sliding test window",
+                     R::GreaterThan(0));
+  options->AddDouble("Stationary.max_gyro_std", &s->max_gyro_std,
+                     "rad/s, gyro scatter in a still window", R::GreaterThan(0));
+  options->AddDouble("Stationary.max_accel_std", &s->max_accel_std,
+                     "m/s^2, accelerometer scatter in a still window", R::GreaterThan(0));
+  options->AddDouble("Stationary.max_gyro_mean", &s->max_gyro_mean,
+                     "rad/s, norm of a still window's mean rate", R::GreaterThan(0));
+  options->AddDouble("Stationary.min_duration", &s->min_duration_s,
+                     "s, shorter still stretches are not rests", R::GreaterThan(0));
+  ZeroVelocityOptions* z = &o->zero_velocity;
+  options->AddDouble("ZeroVelocity.velocity_sigma", &z->velocity_sigma,
+                     "m/s, 1-sigma of a velocity at rest", R::GreaterThan(0));
+  options->AddDouble("ZeroVelocity.rotation_sigma", &z->rotation_sigma,
+                     "rad, 1-sigma of the rotation between two nodes of one rest",
+                     R::GreaterThan(0));
+  options->AddDouble("ZeroVelocity.translation_sigma", &z->translation_sigma,
+                     "m, 1-sigma of the translation between two nodes of one rest",
+                     R::GreaterThan(0));
+  options->AddInt("num_threads", &o->num_threads, "threads (-1 = all cores)",
+                  R::AtLeast(1).Or(-1));
+  AddBayesianIcpOptions(options, &o->bayesian);
+  AddPoseGraphSolverOptions(options, &o->solver);
+  options->AddStructCheck([o] { return o->Check(); });
+}
+
 void AddTrajectoryEvaluationOptions(OptionManager* options,
                                     TrajectoryEvaluationOptions* eval) {
   options->AddEnum(

@@ -23,6 +23,7 @@
 #include "lio/lio_odometry.h"
 #include "lio/pose_slam/g2o_pose_graph.h"
 #include "lio/pose_slam/pose_graph.h"
+#include "lio/pose_slam/pose_slam.h"
 #include "lio/voxel_map.h"
 #include "sim/simulator.h"
 
@@ -54,6 +55,9 @@ void AddImuInitializerOptions(OptionManager* options,
 void AddPoseGraphSolverOptions(OptionManager* options, PoseGraphSolverOptions* solver);
 // PoseGraph.initialization and Solver.* (AddPoseGraphSolverOptions): lisfm pose_graph.
 void AddPoseGraphOptions(OptionManager* options, G2oOptimizationOptions* pose_graph);
+// PoseSlam.*, Stationary.*, ZeroVelocity.*, plus Bayesian.* / Sgld.*
+// (AddBayesianIcpOptions) and Solver.* (AddPoseGraphSolverOptions): lisfm pose_slam.
+void AddPoseSlamOptions(OptionManager* options, PoseSlamOptions* pose_slam);
 
 // `alignment` (alias `align`); no section (lisfm evaluate). The association
 // tolerance is the command's --max_dt (seconds; its default depends on the

@@ -48,6 +48,20 @@ TEST(OptionRanges, PoseGraph) {
   ExpectHelpContains("pose_graph", "--Solver.function_tolerance");
 }
 
+TEST(OptionRanges, PoseSlam) {
+  const std::string pose_slam = "pose_slam --input_path s --lio_path l --output_path o";
+  ExpectUsageError(pose_slam + " --PoseSlam.knn 0",
+                   "--PoseSlam.knn 0 is out of range: must be >= 1");
+  ExpectUsageError(pose_slam + " --PoseSlam.max_translation_difference 0",
+                   "--PoseSlam.max_translation_difference 0 is out of range: must be > 0");
+  for (const char* option : {"--PoseSlam.max_rotation_difference_deg", "--PoseSlam.use_imu",
+                             "--Stationary.window", "--ZeroVelocity.velocity_sigma",
+                             "--Bayesian.kernel", "--Bayesian.num_iterations",
+                             "--Solver.max_num_iterations", "--num_threads"}) {
+    ExpectHelpContains("pose_slam", option);
+  }
+}
+
 TEST(OptionRanges, Icp) {
   const std::string icp = "icp --source_path a.pcd --target_path b.pcd";
   ExpectUsageError(icp + " --Icp.max_iterations 0",
