@@ -14,6 +14,14 @@
 namespace lisfm {
 namespace {
 
+// The walk with three rests (start, middle, end) these tests are written for.
+sim::WalkingOptions ThreeStopWalk() {
+  sim::WalkingOptions options;
+  options.num_stops = 3;
+  return options;
+}
+
+
 constexpr double kDegToRad = M_PI / 180.0;
 
 // Pinhole camera, 640 x 480, f = 300 px, looking along +x (forward = true) or
@@ -161,7 +169,7 @@ TEST(InterpolatePoseSe3, ExactOnAScrewMotion) {
 TEST(InterpolatePoseSe3, MatchesSimulatedCameraPoses) {
   const auto scene = sim::Scene::Generate(sim::DefaultSceneOptions("office"));
   const sim::SplineTrajectory walk =
-      sim::GenerateWalking(scene->route(), 20.0, 0, 1, sim::WalkingOptions(), nullptr);
+      sim::GenerateWalking(scene->route(), 20.0, 0, 1, ThreeStopWalk(), nullptr);
   Trajectory trajectory;
   for (TimestampNs t = 0; t <= SecondsToNs(20.0); t += 10000000) {
     trajectory.PushBack({t, walk.Pose(t)});

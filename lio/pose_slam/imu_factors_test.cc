@@ -21,6 +21,14 @@
 namespace lisfm {
 namespace {
 
+// The walk with three rests (start, middle, end) these tests are written for.
+sim::WalkingOptions ThreeStopWalk() {
+  sim::WalkingOptions options;
+  options.num_stops = 3;
+  return options;
+}
+
+
 const Vec3 kGravity(0, 0, -sim::kGravity);
 constexpr TimestampNs kStartNs = 1'000'000'000'000LL;  // 1000 s
 constexpr double kRate = 400.0;                        // Hz
@@ -35,7 +43,7 @@ sim::SplineTrajectory Walk(std::vector<sim::StationaryPeriod>* rests = nullptr) 
   sim::WalkingRoute route;
   route.waypoints = {Vec3(0, 0, 1.4), Vec3(12, 0, 1.4), Vec3(12, 8, 1.4), Vec3(0, 8, 1.4)};
   route.closed = true;
-  return sim::GenerateWalking(route, 30.0, kStartNs, 7, sim::WalkingOptions(), rests);
+  return sim::GenerateWalking(route, 30.0, kStartNs, 7, ThreeStopWalk(), rests);
 }
 
 // Samples at 400 Hz: exact, plus a constant bias and BMI085 white noise when asked.

@@ -13,6 +13,14 @@
 namespace lisfm {
 namespace {
 
+// The walk with three rests (start, middle, end) these tests are written for.
+sim::WalkingOptions ThreeStopWalk() {
+  sim::WalkingOptions options;
+  options.num_stops = 3;
+  return options;
+}
+
+
 const Vec3 kGravity(0, 0, -sim::kGravity);
 constexpr TimestampNs kStartNs = 1'000'000'000'000LL;  // 1000 s
 
@@ -22,7 +30,7 @@ sim::SplineTrajectory Walk(double duration_s, std::vector<sim::StationaryPeriod>
   sim::WalkingRoute route;
   route.waypoints = {Vec3(0, 0, 1.4), Vec3(12, 0, 1.4), Vec3(12, 8, 1.4), Vec3(0, 8, 1.4)};
   route.closed = true;
-  return sim::GenerateWalking(route, duration_s, kStartNs, 7, sim::WalkingOptions(), rests);
+  return sim::GenerateWalking(route, duration_s, kStartNs, 7, ThreeStopWalk(), rests);
 }
 
 // Noise-free samples at `rate` Hz over the whole trajectory.

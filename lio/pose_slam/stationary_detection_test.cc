@@ -13,6 +13,14 @@
 namespace lisfm {
 namespace {
 
+// The walk with three rests (start, middle, end) these tests are written for.
+sim::WalkingOptions ThreeStopWalk() {
+  sim::WalkingOptions options;
+  options.num_stops = 3;
+  return options;
+}
+
+
 constexpr TimestampNs kStartNs = 1'000'000'000'000LL;  // 1000 s
 
 TimestampNs At(double t_s) { return kStartNs + SecondsToNs(t_s); }
@@ -24,7 +32,7 @@ sim::SplineTrajectory Walk(double duration_s,
   sim::WalkingRoute route;
   route.waypoints = {Vec3(0, 0, 1.4), Vec3(12, 0, 1.4), Vec3(12, 8, 1.4), Vec3(0, 8, 1.4)};
   route.closed = true;
-  return sim::GenerateWalking(route, duration_s, kStartNs, seed, sim::WalkingOptions(), rests);
+  return sim::GenerateWalking(route, duration_s, kStartNs, seed, ThreeStopWalk(), rests);
 }
 
 // The simulator's realistic IMU (sim/imu_simulator.h, sim/imu_errors.h):
