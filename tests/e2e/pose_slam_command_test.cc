@@ -32,6 +32,7 @@ class PoseSlamCommandTest : public ::testing::Test {
     sim::SimulatorOptions options;
     options.duration = 30.0;
     options.camera_rate = 0;
+    options.walk.num_stops = 3;  // rests at the start, middle and end
     options.output_path = dir_->File("seq");
     sim::Simulate(options, sim::PrepareRig(Rig(), "spinning"));
     std::string out;
