@@ -29,5 +29,7 @@ int RunModelEvaluator(int argc, char** argv);  // model_evaluator_command.cc
 int RunGlobalMapper(int argc, char** argv);    // global_mapper_command.cc
 int RunPoseGraph(int argc, char** argv);       // pose_graph_command.cc
 int RunDatabaseImporter(int argc, char** argv);  // database_importer_command.cc
+int RunBagImporter(int argc, char** argv);       // bag_commands.cc
+int RunBagExporter(int argc, char** argv);       // bag_commands.cc
 
 }  // namespace lisfm
