@@ -166,9 +166,12 @@ PointCloud DecodePointCloud2(const RawPointCloud2& msg,
   }
   cloud.stamp_ns = msg.header_stamp_ns + offset_ns;
   const double offset_s = static_cast<double>(offset_ns) * 1e-9;
+  // The earliest point may fall below the stamp by the stamp's rounding to whole
+  // ns, or by the absolute times' resolution: such times become 0.
+  const double tolerance_s = std::max(resolution_s, 0.5e-9);
   for (size_t i = 0; i < n; ++i) {
     double t = offset_ns == 0 ? rel_s[i] : rel_s[i] - offset_s;
-    if (t < 0 && t >= -resolution_s) t = 0;
+    if (t < 0 && t >= -tolerance_s) t = 0;
     cloud.points[i].t = static_cast<float>(t);
   }
   return cloud;

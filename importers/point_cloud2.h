@@ -16,7 +16,9 @@
 //   Ouster     `t` uint32, nanoseconds since header.stamp (kStamp, unit ns).
 // When the earliest point is at header.stamp (relative layouts) the per-point
 // times are copied exactly. Absolute float64 seconds resolve ~2.4e-7 s at
-// 1.7e9 s, so Hesai-style times carry that rounding.
+// 1.7e9 s, so Hesai-style times carry that rounding. A time below the new
+// stamp by no more than the stamp's rounding to whole ns (or that resolution)
+// becomes 0.
 #pragma once
 
 #include <cstddef>
