@@ -1,9 +1,9 @@
 // `lisfm bag_importer` (a ROS1 bag -> a sequence folder) and `lisfm
 // bag_exporter` (a sequence folder -> a ROS1 bag), with the topics and point
 // layout of a preset in configs/bags/ (importers/bag.h).
-#include <string>
-
 #include <fmt/format.h>
+
+#include <string>
 
 #include "apps/commands.h"
 #include "core/errors.h"
@@ -53,30 +53,36 @@ int RunBagImporter(int argc, char** argv) {
                         "first point), camK/ (PNG), rig.yaml; prints a per-topic summary");
   options.AddRequiredString("input_path", &input_path, "ROS1 bag (.bag)");
   options.AddRequiredString("output_path", &output_path, "sequence folder to write");
-  options.AddString("rig_path", &rig_path,
+  options.AddString("rig_path",
+                    &rig_path,
                     "rig YAML or HILTI/Kalibr calibration folder written as rig.yaml (default: "
                     "configs/hilti2022.yaml)");
   options.AddString("preset", &preset, kPresetHelp);
-  options.AddDouble("camera_rate", &import.camera_rate_hz,
+  options.AddDouble("camera_rate",
+                    &import.camera_rate_hz,
                     "keep camera frames at most this often per camera (Hz; a frame is kept "
                     "when >= 0.9 / rate s after the last kept one); 0 keeps all",
                     OptionRange::AtLeast(0));
   options.AddBool("overwrite", &overwrite, "replace an earlier output at --output_path");
   if (!options.Parse(argc, argv)) return 0;
   const BagPreset bag_preset = LoadPreset(preset);
-  Rig rig;
   if (rig_path.empty()) rig_path = LISFM_DEFAULT_RIG_PATH;
-  rig = DirExists(rig_path) ? LoadHiltiCalibration(rig_path) : ReadRigYaml(rig_path);
+  // A rig YAML is copied verbatim; a calibration folder is converted once.
+  const Rig rig = DirExists(rig_path) ? LoadHiltiCalibration(rig_path) : ReadRigYaml(rig_path);
+  const std::string rig_yaml = DirExists(rig_path) ? RigToYaml(rig) : ReadFile(rig_path);
   CheckFileExists(input_path, "bag");
   OutputFolder output(output_path, overwrite);
 
   LogStage("bag_importer: " + input_path);
-  const BagImportSummary s = ImportBag(input_path, rig, bag_preset, import, output.path());
+  const BagImportSummary s =
+      ImportBag(input_path, rig, rig_yaml, bag_preset, import, output.path());
   options.WriteConfig(output.File("bag_importer_config.yaml"));
   output.Commit();
   LogInfo("bag_importer: {:.1f} MB in {:.2f} s ({:.0f} MB/s) -> {}\n{}",
-          static_cast<double>(s.bag_bytes) * 1e-6, s.seconds,
-          static_cast<double>(s.bag_bytes) * 1e-6 / std::max(s.seconds, 1e-9), output_path,
+          static_cast<double>(s.bag_bytes) * 1e-6,
+          s.seconds,
+          static_cast<double>(s.bag_bytes) * 1e-6 / std::max(s.seconds, 1e-9),
+          output_path,
           FormatBagSummary(s));
   return 0;
 }
@@ -95,8 +101,11 @@ int RunBagExporter(int argc, char** argv) {
   CheckOutputFileWritable(output_path, "--output_path");
   LogStage("bag_exporter: " + input_path);
   const BagExportSummary s = ExportBag(input_path, bag_preset, output_path);
-  LogInfo("bag_exporter: {} IMU messages, {} scans, {} images -> {}", s.num_imu, s.num_scans,
-          s.num_images, output_path);
+  LogInfo("bag_exporter: {} IMU messages, {} scans, {} images -> {}",
+          s.num_imu,
+          s.num_scans,
+          s.num_images,
+          output_path);
   return 0;
 }
 

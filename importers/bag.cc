@@ -1,17 +1,6 @@
 #include "importers/bag.h"
 
-#include <algorithm>
-#include <chrono>
-#include <cmath>
-#include <cstdio>
-#include <iomanip>
-#include <map>
-#include <sstream>
-
 #include <fmt/format.h>
-#include <opencv2/core.hpp>
-#include <opencv2/imgcodecs.hpp>
-#include <opencv2/imgproc.hpp>
 #include <rosbag/bag.h>
 #include <rosbag/view.h>
 #include <sensor_msgs/Image.h>
@@ -19,6 +8,17 @@
 #include <sensor_msgs/PointCloud2.h>
 #include <unistd.h>
 #include <yaml-cpp/yaml.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <iomanip>
+#include <map>
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+#include <sstream>
 
 #include "core/errors.h"
 #include "core/file_utils.h"
@@ -31,7 +31,8 @@ namespace lisfm {
 namespace {
 
 ros::Time ToRosTime(TimestampNs t_ns, const std::string& what) {
-  if (t_ns <= 0) throw InputError(fmt::format("{}: stamp {} ns is not a valid ROS time", what, t_ns));
+  if (t_ns <= 0)
+    throw InputError(fmt::format("{}: stamp {} ns is not a valid ROS time", what, t_ns));
   ros::Time t;
   t.fromNSec(static_cast<uint64_t>(t_ns));
   return t;
@@ -44,11 +45,13 @@ uint8_t ParseTimeType(const std::string& s, const std::string& path) {
   if (s == "float64") return 8;
   if (s == "uint32") return 6;
   if (s == "int32") return 5;
-  throw InputError(path, "lidar_fields.time_type",
+  throw InputError(path,
+                   "lidar_fields.time_type",
                    "expected float32, float64, uint32 or int32, found '" + s + "'");
 }
 
-std::vector<std::string> StringList(const YAML::Node& node, const std::string& path,
+std::vector<std::string> StringList(const YAML::Node& node,
+                                    const std::string& path,
                                     const std::string& key) {
   std::vector<std::string> out;
   if (!node) return out;
@@ -72,7 +75,8 @@ std::string Where(const std::string& bag, const std::string& topic, size_t index
   return fmt::format("{}: topic {} message {}", bag, topic, index);
 }
 
-void WriteIndex(const std::string& path, const std::vector<TimestampNs>& stamps,
+void WriteIndex(const std::string& path,
+                const std::vector<TimestampNs>& stamps,
                 const std::string& ext) {
   std::ostringstream csv;
   csv << "#timestamp [ns],filename\n";
@@ -103,7 +107,9 @@ BagTopicSummary Summarize(const std::string& topic, const TopicState& s) {
 
 }  // namespace
 
-bool BagImportOptions::Check() const { return camera_rate_hz >= 0 && std::isfinite(camera_rate_hz); }
+bool BagImportOptions::Check() const {
+  return camera_rate_hz >= 0 && std::isfinite(camera_rate_hz);
+}
 
 BagPreset ReadBagPreset(const std::string& path) {
   CheckFileExists(path, "bag preset");
@@ -131,17 +137,17 @@ BagPreset ReadBagPreset(const std::string& path) {
         if (u != "s" && u != "ns") {
           throw InputError(path, "lidar_fields.time_unit", "expected s or ns, found '" + u + "'");
         }
-        p.lidar_fields.time.unit = u == "s" ? PointTimeField::Unit::kSeconds
-                                            : PointTimeField::Unit::kNanoseconds;
+        p.lidar_fields.time.unit =
+            u == "s" ? PointTimeField::Unit::kSeconds : PointTimeField::Unit::kNanoseconds;
       }
       if (f["time_reference"]) {
         const std::string r = f["time_reference"].as<std::string>();
         if (r != "stamp" && r != "absolute") {
-          throw InputError(path, "lidar_fields.time_reference",
-                           "expected stamp or absolute, found '" + r + "'");
+          throw InputError(
+              path, "lidar_fields.time_reference", "expected stamp or absolute, found '" + r + "'");
         }
-        p.lidar_fields.time.reference = r == "stamp" ? PointTimeField::Reference::kStamp
-                                                     : PointTimeField::Reference::kAbsolute;
+        p.lidar_fields.time.reference =
+            r == "stamp" ? PointTimeField::Reference::kStamp : PointTimeField::Reference::kAbsolute;
       }
       if (f["intensity"]) p.lidar_fields.intensity_field = f["intensity"].as<std::string>();
       if (f["ring"]) p.lidar_fields.ring_field = f["ring"].as<std::string>();
@@ -154,6 +160,7 @@ BagPreset ReadBagPreset(const std::string& path) {
 
 BagImportSummary ImportBag(const std::string& bag_path,
                            const Rig& rig,
+                           const std::string& rig_yaml,
                            const BagPreset& preset,
                            const BagImportOptions& options,
                            const std::string& output_dir) {
@@ -161,7 +168,9 @@ BagImportSummary ImportBag(const std::string& bag_path,
   CheckFileExists(bag_path, "bag");
   if (preset.lidar_topics.size() > rig.lidars.size()) {
     throw InputError(fmt::format("{} lists {} LiDAR topics but the rig has {} LiDARs",
-                                 preset.name, preset.lidar_topics.size(), rig.lidars.size()));
+                                 preset.name,
+                                 preset.lidar_topics.size(),
+                                 rig.lidars.size()));
   }
   rosbag::Bag bag;
   try {
@@ -175,7 +184,9 @@ BagImportSummary ImportBag(const std::string& bag_path,
   // Topics of the preset and their types in the bag.
   std::map<std::string, TopicState> topics;
   std::vector<std::string> order;
-  auto add_topic = [&](const std::string& topic, TopicState::Kind kind, size_t index,
+  auto add_topic = [&](const std::string& topic,
+                       TopicState::Kind kind,
+                       size_t index,
                        const std::string& folder) {
     TopicState s;
     s.kind = kind;
@@ -208,16 +219,22 @@ BagImportSummary ImportBag(const std::string& bag_path,
                                                                 : "sensor_msgs/Image";
     if (s.type.empty()) {
       if (s.kind == TopicState::Kind::kCamera) {
-        LogWarning("{}: no topic {} (camera {}); the folder has no {}/", bag_path, topic,
-                   s.folder, s.folder);
+        LogWarning("{}: no topic {} (camera {}); the folder has no {}/",
+                   bag_path,
+                   topic,
+                   s.folder,
+                   s.folder);
         continue;
       }
-      throw InputError(fmt::format("{}: topic {} ({} of preset {}) is not in the bag", bag_path,
-                                   topic, expected, preset.name));
+      throw InputError(fmt::format("{}: topic {} ({} of preset {}) is not in the bag",
+                                   bag_path,
+                                   topic,
+                                   expected,
+                                   preset.name));
     }
     if (s.type != expected) {
-      throw InputError(fmt::format("{}: topic {} has type {}, expected {}", bag_path, topic, s.type,
-                                   expected));
+      throw InputError(
+          fmt::format("{}: topic {} has type {}, expected {}", bag_path, topic, s.type, expected));
     }
     query_topics.push_back(topic);
     if (s.kind != TopicState::Kind::kImu) CreateDirs(JoinPaths(output_dir, s.folder + "/data"));
@@ -239,8 +256,8 @@ BagImportSummary ImportBag(const std::string& bag_path,
       auto check_stamp = [&](TimestampNs t_ns) {
         if (t_ns <= 0) throw InputError(fmt::format("{}: header.stamp is 0", where()));
         if (!s.stamps.empty() && t_ns <= s.stamps.back()) {
-          throw InputError(fmt::format("{}: stamp {} ns not after the previous {} ns", where(),
-                                       t_ns, s.stamps.back()));
+          throw InputError(fmt::format(
+              "{}: stamp {} ns not after the previous {} ns", where(), t_ns, s.stamps.back()));
         }
         s.stamps.push_back(t_ns);
       };
@@ -255,10 +272,10 @@ BagImportSummary ImportBag(const std::string& bag_path,
         ImuSample sample;
         sample.t_ns = ToNs(msg->header.stamp);
         check_stamp(sample.t_ns);
-        sample.gyro = Vec3(msg->angular_velocity.x, msg->angular_velocity.y,
-                           msg->angular_velocity.z);
-        sample.accel = Vec3(msg->linear_acceleration.x, msg->linear_acceleration.y,
-                            msg->linear_acceleration.z);
+        sample.gyro =
+            Vec3(msg->angular_velocity.x, msg->angular_velocity.y, msg->angular_velocity.z);
+        sample.accel = Vec3(
+            msg->linear_acceleration.x, msg->linear_acceleration.y, msg->linear_acceleration.z);
         if (!sample.gyro.allFinite() || !sample.accel.allFinite()) {
           throw InputError(fmt::format("{}: non-finite angular velocity or acceleration", where()));
         }
@@ -288,9 +305,10 @@ BagImportSummary ImportBag(const std::string& bag_path,
         PointCloud cloud = DecodePointCloud2(raw, preset.lidar_fields, where());
         RemoveNonFinite(&cloud);
         check_stamp(cloud.stamp_ns);
-        WritePcd(JoinPaths(output_dir,
-                           s.folder + "/data/" + std::to_string(cloud.stamp_ns) + ".pcd"),
-                 cloud, true);
+        WritePcd(
+            JoinPaths(output_dir, s.folder + "/data/" + std::to_string(cloud.stamp_ns) + ".pcd"),
+            cloud,
+            true);
         s.kept.push_back(cloud.stamp_ns);
       } else {
         sensor_msgs::Image::ConstPtr msg;
@@ -312,16 +330,22 @@ BagImportSummary ImportBag(const std::string& bag_path,
         }
         if (msg->step < msg->width * channels ||
             msg->data.size() < static_cast<size_t>(msg->step) * msg->height) {
-          throw InputError(fmt::format("{}: image {}x{} step {} with {} data bytes", where(),
-                                       msg->width, msg->height, msg->step, msg->data.size()));
+          throw InputError(fmt::format("{}: image {}x{} step {} with {} data bytes",
+                                       where(),
+                                       msg->width,
+                                       msg->height,
+                                       msg->step,
+                                       msg->data.size()));
         }
         if (camera_min_dt_ns > 0 && !s.kept.empty() && t_ns - s.last_kept < camera_min_dt_ns) {
           progress.Add(1);
           continue;
         }
-        const cv::Mat view_mat(static_cast<int>(msg->height), static_cast<int>(msg->width),
+        const cv::Mat view_mat(static_cast<int>(msg->height),
+                               static_cast<int>(msg->width),
                                channels == 1 ? CV_8UC1 : CV_8UC3,
-                               const_cast<uint8_t*>(msg->data.data()), msg->step);
+                               const_cast<uint8_t*>(msg->data.data()),
+                               msg->step);
         cv::Mat image = view_mat;
         if (enc == "rgb8") cv::cvtColor(view_mat, image, cv::COLOR_RGB2BGR);
         const std::string path =
@@ -336,8 +360,8 @@ BagImportSummary ImportBag(const std::string& bag_path,
     }
     progress.Finish();
   } catch (const rosbag::BagException& e) {
-    throw InputError(fmt::format("{}: bag read failed (truncated or corrupted?): {}", bag_path,
-                                 e.what()));
+    throw InputError(
+        fmt::format("{}: bag read failed (truncated or corrupted?): {}", bag_path, e.what()));
   }
   bag.close();
 
@@ -346,8 +370,8 @@ BagImportSummary ImportBag(const std::string& bag_path,
     if (s.type.empty()) continue;
     if (s.kind == TopicState::Kind::kImu) {
       if (imu.size() < 2) {
-        throw InputError(fmt::format("{}: topic {} has {} messages, need at least 2", bag_path,
-                                     topic, imu.size()));
+        throw InputError(fmt::format(
+            "{}: topic {} has {} messages, need at least 2", bag_path, topic, imu.size()));
       }
       std::ostringstream csv;
       csv << std::setprecision(17);
@@ -363,14 +387,14 @@ BagImportSummary ImportBag(const std::string& bag_path,
       if (s.kind == TopicState::Kind::kLidar && s.kept.empty()) {
         throw InputError(fmt::format("{}: topic {} has no messages", bag_path, topic));
       }
-      WriteIndex(JoinPaths(output_dir, s.folder + "/data.csv"), s.kept,
+      WriteIndex(JoinPaths(output_dir, s.folder + "/data.csv"),
+                 s.kept,
                  s.kind == TopicState::Kind::kLidar ? ".pcd" : ".png");
     }
     summary.topics.push_back(Summarize(topic, s));
   }
-  WriteRigYaml(JoinPaths(output_dir, "rig.yaml"), rig);
-  summary.seconds =
-      std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  WriteFileAtomically(JoinPaths(output_dir, "rig.yaml"), rig_yaml);
+  summary.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return summary;
 }
 
@@ -383,8 +407,11 @@ BagExportSummary ExportBag(const std::string& seq_root,
     if (!seq.lidar_scans[k].empty()) num_lidars = k + 1;
   }
   if (num_lidars > preset.lidar_topics.size()) {
-    throw InputError(fmt::format("{}: {} LiDARs but preset {} has {} LiDAR topics", seq_root,
-                                 num_lidars, preset.name, preset.lidar_topics.size()));
+    throw InputError(fmt::format("{}: {} LiDARs but preset {} has {} LiDAR topics",
+                                 seq_root,
+                                 num_lidars,
+                                 preset.name,
+                                 preset.lidar_topics.size()));
   }
   BagExportSummary summary;
   const std::string temp = fmt::format("{}.tmp-{}", bag_path, getpid());
@@ -433,8 +460,9 @@ BagExportSummary ExportBag(const std::string& seq_root,
         m.is_bigendian = false;
         m.point_step = step;
         m.row_step = step * m.width;
-        m.is_dense = std::all_of(cloud.points.begin(), cloud.points.end(),
-                                 [](const LidarPoint& p) { return IsFinite(p); });
+        m.is_dense = std::all_of(cloud.points.begin(), cloud.points.end(), [](const LidarPoint& p) {
+          return IsFinite(p);
+        });
         m.data = std::move(data);
         float t_max = 0;
         for (const LidarPoint& p : cloud.points) t_max = std::max(t_max, p.t);
@@ -484,13 +512,25 @@ BagExportSummary ExportBag(const std::string& seq_root,
 }
 
 std::string FormatBagSummary(const BagImportSummary& summary) {
-  std::string s = fmt::format("{:<36} {:<24} {:>8} {:>8} {:>9} {:>9} {:>6} {:>9}\n", "topic",
-                              "type", "messages", "kept", "rate Hz", "span s", "gaps",
+  std::string s = fmt::format("{:<36} {:<24} {:>8} {:>8} {:>9} {:>9} {:>6} {:>9}\n",
+                              "topic",
+                              "type",
+                              "messages",
+                              "kept",
+                              "rate Hz",
+                              "span s",
+                              "gaps",
                               "max gap s");
   for (const BagTopicSummary& t : summary.topics) {
-    s += fmt::format("{:<36} {:<24} {:>8} {:>8} {:>9.2f} {:>9.2f} {:>6} {:>9.3f}\n", t.topic,
-                     t.type, t.num_messages, t.num_kept, t.rate_hz,
-                     NsToSeconds(t.last_ns - t.first_ns), t.num_gaps, t.max_gap_s);
+    s += fmt::format("{:<36} {:<24} {:>8} {:>8} {:>9.2f} {:>9.2f} {:>6} {:>9.3f}\n",
+                     t.topic,
+                     t.type,
+                     t.num_messages,
+                     t.num_kept,
+                     t.rate_hz,
+                     NsToSeconds(t.last_ns - t.first_ns),
+                     t.num_gaps,
+                     t.max_gap_s);
   }
   return s;
 }

@@ -37,9 +37,9 @@ namespace lisfm {
 // The topics and point layout of one recording setup (configs/bags/*.yaml).
 struct BagPreset {
   std::string name;
-  std::string imu_topic;                  // required on import
-  std::vector<std::string> lidar_topics;  // [k] -> rig lidar k; each required on import
-  PointCloud2Mapping lidar_fields;        // per-point time / intensity / ring fields
+  std::string imu_topic;                   // required on import
+  std::vector<std::string> lidar_topics;   // [k] -> rig lidar k; each required on import
+  PointCloud2Mapping lidar_fields;         // per-point time / intensity / ring fields
   std::vector<std::string> camera_topics;  // [k] -> rig camera k; absent topics are skipped
 };
 
@@ -61,8 +61,8 @@ struct BagImportOptions {
 struct BagTopicSummary {
   std::string topic;
   std::string type;
-  size_t num_messages = 0;  // read
-  size_t num_kept = 0;      // written to the folder
+  size_t num_messages = 0;                // read
+  size_t num_kept = 0;                    // written to the folder
   TimestampNs first_ns = 0, last_ns = 0;  // header stamps
   double rate_hz = 0;                     // (messages - 1) / span
   size_t num_gaps = 0;                    // intervals > 1.5 x median interval
@@ -75,10 +75,12 @@ struct BagImportSummary {
   double seconds = 0;
 };
 
-// Reads `bag_path` into the sequence folder `output_dir` (existing, empty),
-// writing rig.yaml from `rig`.
+// Reads `bag_path` into the sequence folder `output_dir` (existing, empty).
+// `rig` names the LiDAR and camera folders; `rig_yaml` is written as rig.yaml
+// verbatim (the calibration file as given, so that it is read exactly as before).
 BagImportSummary ImportBag(const std::string& bag_path,
                            const Rig& rig,
+                           const std::string& rig_yaml,
                            const BagPreset& preset,
                            const BagImportOptions& options,
                            const std::string& output_dir);

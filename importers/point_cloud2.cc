@@ -1,11 +1,11 @@
 #include "importers/point_cloud2.h"
 
+#include <fmt/format.h>
+
 #include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <limits>
-
-#include <fmt/format.h>
 
 #include "core/errors.h"
 
@@ -23,14 +23,43 @@ double ReadValue(const uint8_t* p, uint8_t datatype, bool swap) {
     std::memcpy(b, p, n);
   }
   switch (static_cast<PointFieldType>(datatype)) {
-    case PointFieldType::kInt8: { int8_t v; std::memcpy(&v, b, 1); return v; }
-    case PointFieldType::kUint8: return b[0];
-    case PointFieldType::kInt16: { int16_t v; std::memcpy(&v, b, 2); return v; }
-    case PointFieldType::kUint16: { uint16_t v; std::memcpy(&v, b, 2); return v; }
-    case PointFieldType::kInt32: { int32_t v; std::memcpy(&v, b, 4); return v; }
-    case PointFieldType::kUint32: { uint32_t v; std::memcpy(&v, b, 4); return v; }
-    case PointFieldType::kFloat32: { float v; std::memcpy(&v, b, 4); return v; }
-    case PointFieldType::kFloat64: { double v; std::memcpy(&v, b, 8); return v; }
+    case PointFieldType::kInt8: {
+      int8_t v;
+      std::memcpy(&v, b, 1);
+      return v;
+    }
+    case PointFieldType::kUint8:
+      return b[0];
+    case PointFieldType::kInt16: {
+      int16_t v;
+      std::memcpy(&v, b, 2);
+      return v;
+    }
+    case PointFieldType::kUint16: {
+      uint16_t v;
+      std::memcpy(&v, b, 2);
+      return v;
+    }
+    case PointFieldType::kInt32: {
+      int32_t v;
+      std::memcpy(&v, b, 4);
+      return v;
+    }
+    case PointFieldType::kUint32: {
+      uint32_t v;
+      std::memcpy(&v, b, 4);
+      return v;
+    }
+    case PointFieldType::kFloat32: {
+      float v;
+      std::memcpy(&v, b, 4);
+      return v;
+    }
+    case PointFieldType::kFloat64: {
+      double v;
+      std::memcpy(&v, b, 8);
+      return v;
+    }
   }
   return 0;
 }
@@ -64,11 +93,20 @@ bool HostIsBigEndian() {
 
 size_t PointFieldTypeSize(uint8_t datatype) {
   switch (datatype) {
-    case 1: case 2: return 1;
-    case 3: case 4: return 2;
-    case 5: case 6: case 7: return 4;
-    case 8: return 8;
-    default: return 0;
+    case 1:
+    case 2:
+      return 1;
+    case 3:
+    case 4:
+      return 2;
+    case 5:
+    case 6:
+    case 7:
+      return 4;
+    case 8:
+      return 8;
+    default:
+      return 0;
   }
 }
 
@@ -85,23 +123,30 @@ PointCloud DecodePointCloud2(const RawPointCloud2& msg,
     }
     if (static_cast<size_t>(f.offset) + size * std::max<uint32_t>(f.count, 1) > msg.point_step) {
       throw fail(fmt::format("field '{}' (offset {}, {} x {} bytes) ends past point_step {}",
-                             f.name, f.offset, f.count, size, msg.point_step));
+                             f.name,
+                             f.offset,
+                             f.count,
+                             size,
+                             msg.point_step));
     }
   }
   if (static_cast<uint64_t>(msg.row_step) < static_cast<uint64_t>(msg.width) * msg.point_step) {
-    throw fail(fmt::format("row_step {} < width {} * point_step {}", msg.row_step, msg.width,
-                           msg.point_step));
+    throw fail(fmt::format(
+        "row_step {} < width {} * point_step {}", msg.row_step, msg.width, msg.point_step));
   }
   if (msg.data_size < static_cast<uint64_t>(msg.height) * msg.row_step) {
-    throw fail(fmt::format("{} data bytes, expected height {} * row_step {}", msg.data_size,
-                           msg.height, msg.row_step));
+    throw fail(fmt::format("{} data bytes, expected height {} * row_step {}",
+                           msg.data_size,
+                           msg.height,
+                           msg.row_step));
   }
   auto required = [&](const std::string& name, const char* role) {
     const PointFieldDesc* f = FindField(msg, name);
     if (f == nullptr) {
       throw fail(fmt::format("no {} field '{}' (fields: {})", role, name, FieldNames(msg)));
     }
-    if (f->count != 1) throw fail(fmt::format("field '{}' has count {}, expected 1", name, f->count));
+    if (f->count != 1)
+      throw fail(fmt::format("field '{}' has count {}, expected 1", name, f->count));
     return f;
   };
   const PointFieldDesc* fx = required("x", "x");
@@ -115,11 +160,11 @@ PointCloud DecodePointCloud2(const RawPointCloud2& msg,
   // Per-point time relative to header.stamp, in seconds. Absolute seconds are
   // reduced by the whole seconds of the stamp first: that difference is exact
   // (Sterbenz), so only the absolute time's own rounding remains.
-  const TimestampNs header_sec = msg.header_stamp_ns >= 0 ? msg.header_stamp_ns / 1000000000
-                                                          : -((-msg.header_stamp_ns + 999999999) /
-                                                              1000000000);
-  const double header_frac_s = static_cast<double>(msg.header_stamp_ns - header_sec * 1000000000) *
-                               1e-9;
+  const TimestampNs header_sec = msg.header_stamp_ns >= 0
+                                     ? msg.header_stamp_ns / 1000000000
+                                     : -((-msg.header_stamp_ns + 999999999) / 1000000000);
+  const double header_frac_s =
+      static_cast<double>(msg.header_stamp_ns - header_sec * 1000000000) * 1e-9;
   const bool absolute = mapping.time.reference == PointTimeField::Reference::kAbsolute;
   const double unit_s = mapping.time.unit == PointTimeField::Unit::kNanoseconds ? 1e-9 : 1.0;
 
@@ -138,7 +183,8 @@ PointCloud DecodePointCloud2(const RawPointCloud2& msg,
       q.x = static_cast<float>(ReadValue(p + fx->offset, fx->datatype, swap));
       q.y = static_cast<float>(ReadValue(p + fy->offset, fy->datatype, swap));
       q.z = static_cast<float>(ReadValue(p + fz->offset, fz->datatype, swap));
-      if (fi != nullptr) q.intensity = static_cast<float>(ReadValue(p + fi->offset, fi->datatype, swap));
+      if (fi != nullptr)
+        q.intensity = static_cast<float>(ReadValue(p + fi->offset, fi->datatype, swap));
       if (fr != nullptr) {
         const double ring = ReadValue(p + fr->offset, fr->datatype, swap);
         if (!(ring >= 0 && ring <= 65535)) {
@@ -220,10 +266,18 @@ std::vector<PointFieldDesc> EncodePointCloud2(const PointCloud& cloud,
                         : static_cast<double>(p.t);
     if (ns) t = std::round(t * 1e9);
     switch (time_type) {
-      case 5: Put<int32_t>(q + to, static_cast<int32_t>(t)); break;
-      case 6: Put<uint32_t>(q + to, static_cast<uint32_t>(std::max(t, 0.0))); break;
-      case 7: Put<float>(q + to, static_cast<float>(t)); break;
-      default: Put<double>(q + to, t); break;
+      case 5:
+        Put<int32_t>(q + to, static_cast<int32_t>(t));
+        break;
+      case 6:
+        Put<uint32_t>(q + to, static_cast<uint32_t>(std::max(t, 0.0)));
+        break;
+      case 7:
+        Put<float>(q + to, static_cast<float>(t));
+        break;
+      default:
+        Put<double>(q + to, t);
+        break;
     }
     Put<uint16_t>(q + ro, p.ring);
   }

@@ -68,7 +68,7 @@ struct RawPointCloud2 {
 struct PointTimeField {
   enum class Reference { kStamp, kAbsolute };
   enum class Unit { kSeconds, kNanoseconds };
-  std::string name = "t";                  // field holding the per-point time
+  std::string name = "t";                   // field holding the per-point time
   Reference reference = Reference::kStamp;  // relative to header.stamp or absolute (epoch)
   Unit unit = Unit::kSeconds;
   uint8_t datatype = 7;  // written by the encoder (the decoder takes the message's)

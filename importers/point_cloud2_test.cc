@@ -45,8 +45,12 @@ TEST(PointCloud2Test, BigEndianOrganisedWithRowPadding) {
   msg.is_bigendian = true;
   msg.point_step = 40;
   msg.row_step = 2 * 40 + 8;
-  msg.fields = {{"x", 0, 7, 1}, {"y", 4, 7, 1}, {"z", 8, 7, 1},
-                {"t", 12, 6, 1}, {"ring", 16, 4, 1}, {"intensity", 24, 8, 1}};
+  msg.fields = {{"x", 0, 7, 1},
+                {"y", 4, 7, 1},
+                {"z", 8, 7, 1},
+                {"t", 12, 6, 1},
+                {"ring", 16, 4, 1},
+                {"intensity", 24, 8, 1}};
   std::vector<uint8_t> data(msg.height * msg.row_step, 0xAB);
   for (size_t i = 0; i < kPoints.size(); ++i) {
     uint8_t* p = data.data() + (i / 2) * msg.row_step + (i % 2) * msg.point_step;
@@ -85,8 +89,12 @@ TEST(PointCloud2Test, LittleEndianPaddedVelodyneLayoutShiftsStampToFirstPoint) {
   msg.width = kPoints.size();
   msg.point_step = 32;
   msg.row_step = msg.width * 32;
-  msg.fields = {{"x", 0, 7, 1}, {"y", 4, 7, 1}, {"z", 8, 7, 1},
-                {"intensity", 16, 7, 1}, {"ring", 20, 4, 1}, {"time", 24, 7, 1}};
+  msg.fields = {{"x", 0, 7, 1},
+                {"y", 4, 7, 1},
+                {"z", 8, 7, 1},
+                {"intensity", 16, 7, 1},
+                {"ring", 20, 4, 1},
+                {"time", 24, 7, 1}};
   std::vector<uint8_t> data(msg.row_step, 0);
   for (size_t i = 0; i < kPoints.size(); ++i) {
     uint8_t* p = data.data() + i * 32;
