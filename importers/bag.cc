@@ -13,6 +13,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <fstream>
 #include <iomanip>
 #include <map>
 #include <opencv2/core.hpp>
@@ -36,6 +37,14 @@ ros::Time ToRosTime(TimestampNs t_ns, const std::string& what) {
   ros::Time t;
   t.fromNSec(static_cast<uint64_t>(t_ns));
   return t;
+}
+
+std::string ReadFilePrefix(const std::string& path, size_t n) {
+  std::ifstream in(path, std::ios::binary);
+  std::string s(n, '\0');
+  in.read(&s[0], static_cast<std::streamsize>(n));
+  s.resize(static_cast<size_t>(std::max<std::streamsize>(in.gcount(), 0)));
+  return s;
 }
 
 TimestampNs ToNs(const ros::Time& t) { return static_cast<TimestampNs>(t.toNSec()); }
@@ -176,6 +185,16 @@ BagImportSummary ImportBag(const std::string& bag_path,
   try {
     bag.open(bag_path, rosbag::bagmode::Read);
   } catch (const std::exception& e) {
+    // A bag starts with "#ROSBAG V2.0\n"; one that does but fails to open has
+    // lost its index (an interrupted recording) or is damaged.
+    const std::string head = ReadFilePrefix(bag_path, 13);
+    if (head == "#ROSBAG V2.0\n") {
+      throw InputError(fmt::format(
+          "{}: ROS1 bag cannot be opened (truncated, unindexed or corrupted; `rosbag reindex` "
+          "repairs an unindexed bag): {}",
+          bag_path,
+          e.what()));
+    }
     throw InputError(fmt::format("{}: not a readable ROS1 bag: {}", bag_path, e.what()));
   }
   BagImportSummary summary;

@@ -194,7 +194,7 @@ TEST_F(BagTest, BadBagsAreOneInputErrorNamingBagTopicAndMessage) {
     const std::string bytes = ReadFile(good);
     test::WriteText(truncated, bytes.substr(0, bytes.size() * 6 / 10));
   }
-  ExpectImportError(truncated, velodyne, {truncated});
+  ExpectImportError(truncated, velodyne, {truncated, "truncated, unindexed or corrupted"});
 
   // A preset whose IMU topic the bag does not have.
   BagPreset no_imu = velodyne;
