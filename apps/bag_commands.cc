@@ -67,9 +67,11 @@ int RunBagImporter(int argc, char** argv) {
   if (!options.Parse(argc, argv)) return 0;
   const BagPreset bag_preset = LoadPreset(preset);
   if (rig_path.empty()) rig_path = LISFM_DEFAULT_RIG_PATH;
-  // A rig YAML is copied verbatim; a calibration folder is converted once.
-  const Rig rig = DirExists(rig_path) ? LoadHiltiCalibration(rig_path) : ReadRigYaml(rig_path);
-  const std::string rig_yaml = DirExists(rig_path) ? RigToYaml(rig) : ReadFile(rig_path);
+  // A rig YAML is copied verbatim unless its camera time shifts are applied to
+  // the stamps; a calibration folder is converted once.
+  const bool folder = DirExists(rig_path);
+  const Rig rig = folder ? LoadHiltiCalibration(rig_path) : ReadRigYaml(rig_path);
+  const std::string rig_yaml = FolderRigYaml(rig, folder ? RigToYaml(rig) : ReadFile(rig_path));
   CheckFileExists(input_path, "bag");
   OutputFolder output(output_path, overwrite);
 
@@ -101,11 +103,12 @@ int RunBagExporter(int argc, char** argv) {
   CheckOutputFileWritable(output_path, "--output_path");
   LogStage("bag_exporter: " + input_path);
   const BagExportSummary s = ExportBag(input_path, bag_preset, output_path);
-  LogInfo("bag_exporter: {} IMU messages, {} scans, {} images -> {}",
+  LogInfo("bag_exporter: {} IMU messages, {} scans, {} images -> {} ({:.1f} MB)",
           s.num_imu,
           s.num_scans,
           s.num_images,
-          output_path);
+          output_path,
+          static_cast<double>(s.bag_bytes) * 1e-6);
   return 0;
 }
 

@@ -13,6 +13,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
 #include <iomanip>
 #include <map>
@@ -266,11 +267,23 @@ BagImportSummary ImportBag(const std::string& bag_path,
   std::map<std::string, size_t> counters;
   try {
     rosbag::View view(bag, rosbag::TopicQuery(query_topics));
-    ProgressReporter progress("bag_importer " + bag_path, view.size());
+    // Progress over the bag's bytes (kB): the message bytes read so far; the
+    // record headers and the index make up the rest at the end.
+    const int64_t total_kb = static_cast<int64_t>(summary.bag_bytes / 1024);
+    ProgressReporter progress("bag_importer " + bag_path + " (kB)", total_kb);
+    uint64_t bytes_read = 0;
+    int64_t kb_reported = 0;
+    auto add_bytes = [&](uint64_t n) {
+      bytes_read += n;
+      const int64_t kb = std::min<int64_t>(static_cast<int64_t>(bytes_read / 1024), total_kb);
+      if (kb > kb_reported) progress.Add(kb - kb_reported);
+      kb_reported = std::max(kb, kb_reported);
+    };
     for (const rosbag::MessageInstance& m : view) {
       const std::string& topic = m.getTopic();
       TopicState& s = topics.at(topic);
       const size_t index = counters[topic]++;
+      add_bytes(m.size());
       auto where = [&] { return Where(bag_path, topic, index); };
       auto check_stamp = [&](TimestampNs t_ns) {
         if (t_ns <= 0) throw InputError(fmt::format("{}: header.stamp is 0", where()));
@@ -337,7 +350,9 @@ BagImportSummary ImportBag(const std::string& bag_path,
           throw InputError(fmt::format("{}: cannot deserialize: {}", where(), e.what()));
         }
         if (!msg) throw InputError(fmt::format("{}: not a sensor_msgs/Image", where()));
-        const TimestampNs t_ns = ToNs(msg->header.stamp);
+        // Camera clock -> IMU clock (Kalibr: t_imu = t_cam + timeshift_cam_imu).
+        const TimestampNs t_ns =
+            ToNs(msg->header.stamp) + SecondsToNs(rig.cameras[s.index].timeshift_cam_imu_s);
         check_stamp(t_ns);
         const std::string& enc = msg->encoding;
         int channels = 0;
@@ -357,7 +372,6 @@ BagImportSummary ImportBag(const std::string& bag_path,
                                        msg->data.size()));
         }
         if (camera_min_dt_ns > 0 && !s.kept.empty() && t_ns - s.last_kept < camera_min_dt_ns) {
-          progress.Add(1);
           continue;
         }
         const cv::Mat view_mat(static_cast<int>(msg->height),
@@ -375,8 +389,8 @@ BagImportSummary ImportBag(const std::string& bag_path,
         s.kept.push_back(t_ns);
         s.last_kept = t_ns;
       }
-      progress.Add(1);
     }
+    if (kb_reported < total_kb) progress.Add(total_kb - kb_reported);
     progress.Finish();
   } catch (const rosbag::BagException& e) {
     throw InputError(
@@ -500,7 +514,9 @@ BagExportSummary ExportBag(const std::string& seq_root,
         }
         sensor_msgs::Image m;
         m.header.seq = static_cast<uint32_t>(i);
-        m.header.stamp = ToRosTime(f.t_ns, f.path);
+        // IMU clock -> camera clock, the inverse of the import.
+        m.header.stamp =
+            ToRosTime(f.t_ns - SecondsToNs(seq.rig.cameras[k].timeshift_cam_imu_s), f.path);
         m.header.frame_id = seq.rig.cameras[k].name;
         m.height = static_cast<uint32_t>(image.rows);
         m.width = static_cast<uint32_t>(image.cols);
@@ -516,7 +532,7 @@ BagExportSummary ExportBag(const std::string& seq_root,
       }
     }
     bag.close();
-    summary.bag_bytes = 0;
+    summary.bag_bytes = static_cast<uint64_t>(std::filesystem::file_size(temp));
     if (std::rename(temp.c_str(), bag_path.c_str()) != 0) {
       throw InputError(bag_path, "rename", "cannot move " + temp + " into place");
     }
@@ -528,6 +544,19 @@ BagExportSummary ExportBag(const std::string& seq_root,
     throw;
   }
   return summary;
+}
+
+std::string FolderRigYaml(const Rig& rig, const std::string& rig_file_text) {
+  Rig folder_rig = rig;
+  bool shifted = false;
+  for (RigCamera& c : folder_rig.cameras) {
+    shifted = shifted || c.timeshift_cam_imu_s != 0;
+    c.timeshift_cam_imu_s = 0;
+  }
+  if (!shifted) return rig_file_text;
+  return RigToYaml(folder_rig,
+                   "# lisfm bag_importer: timeshift_cam_imu applied to the camera stamps "
+                   "(t_imu = t_cam + shift), so 0 here.");
 }
 
 std::string FormatBagSummary(const BagImportSummary& summary) {

@@ -8,8 +8,12 @@
 // lidarK/data/<ns>.pcd in the LiDAR frame (importers/point_cloud2.h: any field
 // layout, both byte orders, the preset's per-point time field; non-finite points
 // dropped; stamp = first point) ; sensor_msgs/Image mono8 -> 8-bit grey PNG,
-// bgr8 / rgb8 -> BGR PNG -> camK/data/<header ns>.png. LiDAR k and camera k of
-// the preset are the rig's lidars[k] and cameras[k] (folder names from the rig).
+// bgr8 / rgb8 -> BGR PNG -> camK/data/<ns>.png. LiDAR k and camera k of the
+// preset are the rig's lidars[k] and cameras[k] (folder names from the rig).
+// Camera stamps are moved to the IMU clock once, here (DESIGN.md "Time"):
+// t_ns = header.stamp + rig.cameras[k].timeshift_cam_imu, so the rig.yaml
+// written beside them must carry zero camera time shifts. IMU and LiDAR stamps
+// are copied (lio applies the LiDAR time_offset of rig.yaml itself).
 //
 // The bag is read with rosbag::View in receive-time order, one chunk at a time
 // (memory: the chunk being read plus the IMU samples and per-topic stamps), each
@@ -76,8 +80,10 @@ struct BagImportSummary {
 };
 
 // Reads `bag_path` into the sequence folder `output_dir` (existing, empty).
-// `rig` names the LiDAR and camera folders; `rig_yaml` is written as rig.yaml
-// verbatim (the calibration file as given, so that it is read exactly as before).
+// `rig` names the LiDAR and camera folders and gives the camera time shifts;
+// `rig_yaml` is written as rig.yaml verbatim (the calibration file as given when
+// its camera time shifts are 0, so that it is read exactly as before;
+// FolderRigYaml).
 BagImportSummary ImportBag(const std::string& bag_path,
                            const Rig& rig,
                            const std::string& rig_yaml,
@@ -93,11 +99,17 @@ struct BagExportSummary {
 // Writes the sequence folder `seq_root` as a bag at `bag_path` (temporary name,
 // renamed when complete): IMU, every rig LiDAR that has a preset topic (scan
 // stamp = header.stamp, received at the scan's last point), every camera with a
-// preset topic (mono8 for grey PNGs, bgr8 for colour). Throws InputError when
+// preset topic (mono8 for grey PNGs, bgr8 for colour; header.stamp = stamp minus
+// the folder rig's timeshift_cam_imu). Throws InputError when
 // the sequence has more LiDARs than the preset has topics.
 BagExportSummary ExportBag(const std::string& seq_root,
                            const BagPreset& preset,
                            const std::string& bag_path);
+
+// The rig.yaml text of an imported folder: `rig_file_text` unchanged when every
+// camera time shift of `rig` is 0, else `rig` with those shifts set to 0 (they
+// are applied to the camera stamps by ImportBag).
+std::string FolderRigYaml(const Rig& rig, const std::string& rig_file_text);
 
 std::string FormatBagSummary(const BagImportSummary& summary);
 

@@ -178,6 +178,36 @@ TEST_F(BagTest, CameraRateKeepsFramesAtMostThatOften) {
   }
 }
 
+TEST_F(BagTest, CameraTimeShiftIsAppliedOnceAtImport) {
+  const std::string bag = dir_->File("shift.bag");
+  const BagPreset preset = ReadBagPreset(PresetPath("velodyne"));
+  ExportBag(dir_->File("seq"), preset, bag);
+  Rig rig = ReadRigYaml(dir_->File("seq/rig.yaml"));
+  ASSERT_FALSE(rig.cameras.empty());
+  for (size_t k = 0; k < rig.cameras.size(); ++k) rig.cameras[k].timeshift_cam_imu_s = 0.002 * k;
+  const std::string out = dir_->File("shift_seq");
+  fs::create_directories(out);
+  ImportBag(bag,
+            rig,
+            FolderRigYaml(rig, ReadFile(dir_->File("seq/rig.yaml"))),
+            preset,
+            BagImportOptions(),
+            out);
+  const Sequence a = ReadSequence(dir_->File("seq"));
+  const Sequence b = ReadSequence(out);
+  for (size_t k = 0; k < b.camera_frames.size(); ++k) {
+    EXPECT_EQ(b.rig.cameras[k].timeshift_cam_imu_s, 0.0) << k;  // not applied a second time
+    ASSERT_EQ(a.camera_frames[k].size(), b.camera_frames[k].size());
+    for (size_t i = 0; i < a.camera_frames[k].size(); ++i) {
+      EXPECT_EQ(b.camera_frames[k][i].t_ns, a.camera_frames[k][i].t_ns + 2000000 * int64_t(k));
+    }
+  }
+  ASSERT_EQ(a.lidar_scans[0].size(), b.lidar_scans[0].size());
+  EXPECT_EQ(a.lidar_scans[0][3].t_ns, b.lidar_scans[0][3].t_ns);
+  // Without shifts the calibration file is copied as it is.
+  EXPECT_EQ(FolderRigYaml(a.rig, "text"), "text");
+}
+
 TEST_F(BagTest, BadBagsAreOneInputErrorNamingBagTopicAndMessage) {
   const BagPreset velodyne = ReadBagPreset(PresetPath("velodyne"));
   const std::string good = dir_->File("good.bag");
