@@ -90,19 +90,23 @@ int RunBagImporter(int argc, char** argv) {
 }
 
 int RunBagExporter(int argc, char** argv) {
-  std::string input_path, output_path, preset = "hilti2022";
+  std::string input_path, output_path, preset = "hilti2022", compression = "none";
   OptionManager options("lisfm bag_exporter",
                         "a sequence folder -> a ROS1 bag in the message layouts of a preset "
                         "(sensor_msgs/Imu, PointCloud2, Image)");
   options.AddRequiredString("input_path", &input_path, "sequence folder");
   options.AddRequiredString("output_path", &output_path, "ROS1 bag to write (.bag)");
   options.AddString("preset", &preset, kPresetHelp);
+  options.AddChoice("compression",
+                    &compression,
+                    {"none", "lz4", "bz2"},
+                    "chunk compression of the bag (rosbag's lz4 or bz2)");
   if (!options.Parse(argc, argv)) return 0;
   const BagPreset bag_preset = LoadPreset(preset);
   CheckDirExists(input_path, "sequence folder");
   CheckOutputFileWritable(output_path, "--output_path");
   LogStage("bag_exporter: " + input_path);
-  const BagExportSummary s = ExportBag(input_path, bag_preset, output_path);
+  const BagExportSummary s = ExportBag(input_path, bag_preset, output_path, compression);
   LogInfo("bag_exporter: {} IMU messages, {} scans, {} images -> {} ({:.1f} MB)",
           s.num_imu,
           s.num_scans,

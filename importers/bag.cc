@@ -265,6 +265,7 @@ BagImportSummary ImportBag(const std::string& bag_path,
   const TimestampNs camera_min_dt_ns =
       options.camera_rate_hz > 0 ? static_cast<TimestampNs>(0.9e9 / options.camera_rate_hz) : 0;
   std::map<std::string, size_t> counters;
+  std::string last_read = "before the first message";  // for errors of the chunk reader
   try {
     rosbag::View view(bag, rosbag::TopicQuery(query_topics));
     // Progress over the bag's bytes (kB): the message bytes read so far; the
@@ -283,6 +284,7 @@ BagImportSummary ImportBag(const std::string& bag_path,
       const std::string& topic = m.getTopic();
       TopicState& s = topics.at(topic);
       const size_t index = counters[topic]++;
+      last_read = fmt::format("after topic {} message {}", topic, index);
       add_bytes(m.size());
       auto where = [&] { return Where(bag_path, topic, index); };
       auto check_stamp = [&](TimestampNs t_ns) {
@@ -393,8 +395,10 @@ BagImportSummary ImportBag(const std::string& bag_path,
     if (kb_reported < total_kb) progress.Add(total_kb - kb_reported);
     progress.Finish();
   } catch (const rosbag::BagException& e) {
-    throw InputError(
-        fmt::format("{}: bag read failed (truncated or corrupted?): {}", bag_path, e.what()));
+    throw InputError(fmt::format("{}: bag read failed {} (corrupted chunk or truncated bag): {}",
+                                 bag_path,
+                                 last_read,
+                                 e.what()));
   }
   bag.close();
 
@@ -433,7 +437,16 @@ BagImportSummary ImportBag(const std::string& bag_path,
 
 BagExportSummary ExportBag(const std::string& seq_root,
                            const BagPreset& preset,
-                           const std::string& bag_path) {
+                           const std::string& bag_path,
+                           const std::string& compression) {
+  rosbag::compression::CompressionType type = rosbag::compression::Uncompressed;
+  if (compression == "lz4") {
+    type = rosbag::compression::LZ4;
+  } else if (compression == "bz2") {
+    type = rosbag::compression::BZ2;
+  } else if (compression != "none") {
+    throw InternalError("ExportBag: compression '" + compression + "' is not none, lz4 or bz2");
+  }
   const Sequence seq = ReadSequence(seq_root);
   size_t num_lidars = 0;
   for (size_t k = 0; k < seq.lidar_scans.size(); ++k) {
@@ -451,6 +464,7 @@ BagExportSummary ExportBag(const std::string& seq_root,
   try {
     rosbag::Bag bag;
     bag.open(temp, rosbag::bagmode::Write);
+    bag.setCompression(type);
     for (size_t i = 0; i < seq.imu.size(); ++i) {
       const ImuSample& q = seq.imu[i];
       sensor_msgs::Imu m;

@@ -19,7 +19,8 @@
 // (memory: the chunk being read plus the IMU samples and per-topic stamps), each
 // scan and image written as soon as it is decoded.
 //
-// Errors: a file that is not a readable bag, a missing IMU or LiDAR topic, a topic
+// Errors: a file that is not a readable bag, a chunk that cannot be read
+// (corrupted; named by the message read before it), a missing IMU or LiDAR topic, a topic
 // of the wrong message type, a message that does not deserialize, a PointCloud2
 // without the time field, an unsupported image encoding, non-increasing stamps on
 // a topic: one InputError "<bag>: topic <topic> message <i>: ..." (i counts from 0
@@ -102,9 +103,12 @@ struct BagExportSummary {
 // preset topic (mono8 for grey PNGs, bgr8 for colour; header.stamp = stamp minus
 // the folder rig's timeshift_cam_imu). Throws InputError when
 // the sequence has more LiDARs than the preset has topics.
+// `compression`: "none", "lz4" or "bz2" (rosbag chunk compression; the
+// importer reads all three).
 BagExportSummary ExportBag(const std::string& seq_root,
                            const BagPreset& preset,
-                           const std::string& bag_path);
+                           const std::string& bag_path,
+                           const std::string& compression = "none");
 
 // The rig.yaml text of an imported folder: `rig_file_text` unchanged when every
 // camera time shift of `rig` is 0, else `rig` with those shifts set to 0 (they

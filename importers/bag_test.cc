@@ -9,6 +9,7 @@
 #include <sensor_msgs/Imu.h>
 #include <sensor_msgs/PointCloud2.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <functional>
@@ -150,6 +151,29 @@ TEST_F(BagTest, VelodyneLayoutRoundTripIsLossless) {
   ExpectSameFolder(dir_->File("seq"), Import(bag, preset, "velodyne_seq"), true);
 }
 
+TEST_F(BagTest, CompressedBagsRoundTripLosslessly) {
+  // The first 5 scans and the IMU, no images (bz2 is slow).
+  const std::string small = dir_->File("small");
+  fs::create_directories(small + "/lidar0/data");
+  fs::copy(dir_->File("seq/rig.yaml"), small + "/rig.yaml");
+  fs::copy(dir_->File("seq/imu0"), small + "/imu0");
+  std::string index = "#timestamp [ns],filename\n";
+  const Sequence seq = ReadSequence(dir_->File("seq"));
+  for (const SensorFile& f : seq.lidar_scans[0]) {
+    if (std::count(index.begin(), index.end(), '\n') > 5) break;
+    const std::string name = fs::path(f.path).filename().string();
+    fs::copy(f.path, small + "/lidar0/data/" + name);
+    index += std::to_string(f.t_ns) + "," + name + "\n";
+  }
+  test::WriteText(small + "/lidar0/data.csv", index);
+  const BagPreset preset = ReadBagPreset(PresetPath("velodyne"));
+  for (const std::string compression : {"lz4", "bz2"}) {
+    const std::string bag = dir_->File(compression + ".bag");
+    ExportBag(small, preset, bag, compression);
+    ExpectSameFolder(small, Import(bag, preset, compression + "_seq"), true);
+  }
+}
+
 TEST_F(BagTest, Hilti2022LayoutRoundTripKeepsEverythingButSubMicrosecondTimes) {
   const std::string bag = dir_->File("hilti.bag");
   const BagPreset preset = ReadBagPreset(PresetPath("hilti2022"));
@@ -225,6 +249,18 @@ TEST_F(BagTest, BadBagsAreOneInputErrorNamingBagTopicAndMessage) {
     test::WriteText(truncated, bytes.substr(0, bytes.size() * 6 / 10));
   }
   ExpectImportError(truncated, velodyne, {truncated, "truncated, unindexed or corrupted"});
+
+  // A corrupted lz4 chunk in the middle of a bag.
+  const std::string corrupted = dir_->File("corrupted.bag");
+  {
+    ExportBag(dir_->File("seq"), velodyne, corrupted, "lz4");
+    std::string bytes = ReadFile(corrupted);
+    for (size_t i = bytes.size() / 2; i < bytes.size() / 2 + 4096; ++i) {
+      bytes[i] = static_cast<char>(bytes[i] * 7 + 13);
+    }
+    test::WriteText(corrupted, bytes);
+  }
+  ExpectImportError(corrupted, velodyne, {corrupted, "bag read failed after topic"});
 
   // A preset whose IMU topic the bag does not have.
   BagPreset no_imu = velodyne;
