@@ -30,5 +30,7 @@ int RunGlobalMapper(int argc, char** argv);    // global_mapper_command.cc
 int RunPoseGraph(int argc, char** argv);       // pose_graph_command.cc
 int RunDatabaseImporter(int argc, char** argv);  // database_importer_command.cc
 int RunPoseSlam(int argc, char** argv);        // pose_slam_command.cc
+int RunBagImporter(int argc, char** argv);       // bag_commands.cc
+int RunBagExporter(int argc, char** argv);       // bag_commands.cc
 
 }  // namespace lisfm

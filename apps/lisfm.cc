@@ -38,6 +38,10 @@ const std::vector<Command>& Commands() {
        &RunModelAnalyzer},
       {"database_info", "COLMAP database: schema, rows per table, pose priors",
        &RunDatabaseInfo},
+      {"bag_importer", "a ROS1 bag (HILTI 2022 topics or a preset) -> a sequence folder",
+       &RunBagImporter},
+      {"bag_exporter", "a sequence folder -> a ROS1 bag in a preset's message layouts",
+       &RunBagExporter},
       {"database_importer",
        "COLMAP database with pose priors, rig and a LiDAR-proxy co-visibility pair list from a "
        "sequence + pose_slam output",

@@ -14,6 +14,10 @@ PACKAGES=(
   libopenmpi-dev openmpi-bin
   colmap
   python3-numpy python3-matplotlib
+  librosbag-storage-dev libroscpp-core-dev libroslz4-dev libconsole-bridge-dev
+  libsensor-msgs-dev libstd-msgs-dev libgeometry-msgs-dev
+  pluginlib-dev libclass-loader-dev librcpputils-dev librcutils-dev libament-index-cpp-dev
+  libboost-filesystem-dev
 )
 
 missing=()

@@ -1,0 +1,119 @@
+// `lisfm bag_importer` (a ROS1 bag -> a sequence folder) and `lisfm
+// bag_exporter` (a sequence folder -> a ROS1 bag), with the topics and point
+// layout of a preset in configs/bags/ (importers/bag.h).
+#include <fmt/format.h>
+
+#include <string>
+
+#include "apps/commands.h"
+#include "core/errors.h"
+#include "core/file_utils.h"
+#include "core/io/rig_io.h"
+#include "core/logging.h"
+#include "core/options.h"
+#include "importers/bag.h"
+
+#ifndef LISFM_DEFAULT_RIG_PATH
+#define LISFM_DEFAULT_RIG_PATH ""
+#endif
+#ifndef LISFM_BAG_PRESET_DIR
+#define LISFM_BAG_PRESET_DIR ""
+#endif
+
+namespace lisfm {
+namespace {
+
+constexpr char kPresetHelp[] =
+    "topic preset: a name in configs/bags/ (hilti2022, velodyne) or a preset YAML path";
+
+// A preset name (configs/bags/<name>.yaml) or a path to a preset YAML.
+BagPreset LoadPreset(const std::string& preset) {
+  const bool yaml = preset.size() > 5 && preset.substr(preset.size() - 5) == ".yaml";
+  if (yaml || preset.find('/') != std::string::npos) {
+    return ReadBagPreset(preset);
+  }
+  const std::string path = JoinPaths(LISFM_BAG_PRESET_DIR, preset + ".yaml");
+  if (!FileExists(path)) {
+    throw UsageError(fmt::format("--preset {}: no preset {}", preset, path));
+  }
+  BagPreset p = ReadBagPreset(path);
+  p.name = preset;
+  return p;
+}
+
+}  // namespace
+
+int RunBagImporter(int argc, char** argv) {
+  std::string input_path, output_path, rig_path, preset = "hilti2022";
+  bool overwrite = false;
+  BagImportOptions import;
+  OptionManager options("lisfm bag_importer",
+                        "a ROS1 bag (no ROS installation needed) -> a sequence folder that "
+                        "`lisfm lio` reads: imu0/, lidarK/ (PCD, per-point t since the scan's "
+                        "first point), camK/ (PNG), rig.yaml; prints a per-topic summary");
+  options.AddRequiredString("input_path", &input_path, "ROS1 bag (.bag)");
+  options.AddRequiredString("output_path", &output_path, "sequence folder to write");
+  options.AddString("rig_path",
+                    &rig_path,
+                    "rig YAML or HILTI/Kalibr calibration folder written as rig.yaml (default: "
+                    "configs/hilti2022.yaml)");
+  options.AddString("preset", &preset, kPresetHelp);
+  options.AddDouble("camera_rate",
+                    &import.camera_rate_hz,
+                    "keep camera frames at most this often per camera (Hz; a frame is kept "
+                    "when >= 0.9 / rate s after the last kept one); 0 keeps all",
+                    OptionRange::AtLeast(0));
+  options.AddBool("overwrite", &overwrite, "replace an earlier output at --output_path");
+  if (!options.Parse(argc, argv)) return 0;
+  const BagPreset bag_preset = LoadPreset(preset);
+  if (rig_path.empty()) rig_path = LISFM_DEFAULT_RIG_PATH;
+  // A rig YAML is copied verbatim unless its camera time shifts are applied to
+  // the stamps; a calibration folder is converted once.
+  const bool folder = DirExists(rig_path);
+  const Rig rig = folder ? LoadHiltiCalibration(rig_path) : ReadRigYaml(rig_path);
+  const std::string rig_yaml = FolderRigYaml(rig, folder ? RigToYaml(rig) : ReadFile(rig_path));
+  CheckFileExists(input_path, "bag");
+  OutputFolder output(output_path, overwrite);
+
+  LogStage("bag_importer: " + input_path);
+  const BagImportSummary s =
+      ImportBag(input_path, rig, rig_yaml, bag_preset, import, output.path());
+  options.WriteConfig(output.File("bag_importer_config.yaml"));
+  output.Commit();
+  LogInfo("bag_importer: {:.1f} MB in {:.2f} s ({:.0f} MB/s) -> {}\n{}",
+          static_cast<double>(s.bag_bytes) * 1e-6,
+          s.seconds,
+          static_cast<double>(s.bag_bytes) * 1e-6 / std::max(s.seconds, 1e-9),
+          output_path,
+          FormatBagSummary(s));
+  return 0;
+}
+
+int RunBagExporter(int argc, char** argv) {
+  std::string input_path, output_path, preset = "hilti2022", compression = "none";
+  OptionManager options("lisfm bag_exporter",
+                        "a sequence folder -> a ROS1 bag in the message layouts of a preset "
+                        "(sensor_msgs/Imu, PointCloud2, Image)");
+  options.AddRequiredString("input_path", &input_path, "sequence folder");
+  options.AddRequiredString("output_path", &output_path, "ROS1 bag to write (.bag)");
+  options.AddString("preset", &preset, kPresetHelp);
+  options.AddChoice("compression",
+                    &compression,
+                    {"none", "lz4", "bz2"},
+                    "chunk compression of the bag (rosbag's lz4 or bz2)");
+  if (!options.Parse(argc, argv)) return 0;
+  const BagPreset bag_preset = LoadPreset(preset);
+  CheckDirExists(input_path, "sequence folder");
+  CheckOutputFileWritable(output_path, "--output_path");
+  LogStage("bag_exporter: " + input_path);
+  const BagExportSummary s = ExportBag(input_path, bag_preset, output_path, compression);
+  LogInfo("bag_exporter: {} IMU messages, {} scans, {} images -> {} ({:.1f} MB)",
+          s.num_imu,
+          s.num_scans,
+          s.num_images,
+          output_path,
+          static_cast<double>(s.bag_bytes) * 1e-6);
+  return 0;
+}
+
+}  // namespace lisfm

@@ -1,0 +1,327 @@
+// Bags written by the exporter (and by hand with rosbag_storage) read back by
+// the importer: a lossless round trip of a simulated sequence folder, and one
+// clear InputError per kind of bad bag.
+#include "importers/bag.h"
+
+#include <gtest/gtest.h>
+#include <rosbag/bag.h>
+#include <sensor_msgs/Image.h>
+#include <sensor_msgs/Imu.h>
+#include <sensor_msgs/PointCloud2.h>
+
+#include <algorithm>
+#include <filesystem>
+#include <fstream>
+#include <functional>
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <string>
+#include <vector>
+
+#include "core/errors.h"
+#include "core/file_utils.h"
+#include "core/io/cloud_io.h"
+#include "core/io/rig_io.h"
+#include "importers/sequence.h"
+#include "sim/simulator.h"
+#include "tests/common/test_utils.h"
+
+namespace lisfm {
+namespace {
+
+namespace fs = std::filesystem;
+
+std::string PresetPath(const std::string& name) {
+  return test::SourceDir() + "/configs/bags/" + name + ".yaml";
+}
+
+class BagTest : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    dir_ = new test::TempDir();
+    sim::SimulatorOptions options;
+    options.duration = 2.0;
+    options.camera_rate = 2;
+    options.walk.num_stops = 2;
+    options.walk.stationary_s = 0.3;
+    options.error_sources = "none";
+    options.output_path = dir_->File("seq");
+    const Rig rig = ReadRigYaml(test::SourceDir() + "/configs/hilti2022.yaml");
+    sim::Simulate(options, sim::PrepareRig(rig, "spinning"));
+  }
+  static void TearDownTestSuite() { delete dir_; }
+
+  // Imports `bag` with `preset` into a fresh folder `name`; returns its path.
+  std::string Import(const std::string& bag,
+                     const BagPreset& preset,
+                     const std::string& name,
+                     double camera_rate_hz = 0) {
+    const std::string out = dir_->File(name);
+    fs::create_directories(out);
+    BagImportOptions options;
+    options.camera_rate_hz = camera_rate_hz;
+    ImportBag(bag,
+              ReadRigYaml(dir_->File("seq/rig.yaml")),
+              ReadFile(dir_->File("seq/rig.yaml")),
+              preset,
+              options,
+              out);
+    return out;
+  }
+
+  // Expects ImportBag to throw an InputError containing every one of `needles`.
+  void ExpectImportError(const std::string& bag,
+                         const BagPreset& preset,
+                         const std::vector<std::string>& needles) {
+    const std::string out = dir_->File("bad_" + std::to_string(bad_counter_++));
+    fs::create_directories(out);
+    try {
+      ImportBag(bag,
+                ReadRigYaml(dir_->File("seq/rig.yaml")),
+                ReadFile(dir_->File("seq/rig.yaml")),
+                preset,
+                BagImportOptions(),
+                out);
+      ADD_FAILURE() << "no error for " << bag;
+    } catch (const InputError& e) {
+      const std::string what = e.what();
+      for (const std::string& n : needles) EXPECT_NE(what.find(n), std::string::npos) << what;
+    }
+  }
+
+  static test::TempDir* dir_;
+  int bad_counter_ = 0;
+};
+test::TempDir* BagTest::dir_ = nullptr;
+
+void ExpectSameFolder(const std::string& a_root, const std::string& b_root, bool exact_times) {
+  const Sequence a = ReadSequence(a_root);
+  const Sequence b = ReadSequence(b_root);
+  ASSERT_EQ(a.imu.size(), b.imu.size());
+  for (size_t i = 0; i < a.imu.size(); ++i) {
+    ASSERT_EQ(a.imu[i].t_ns, b.imu[i].t_ns) << i;
+    ASSERT_EQ(a.imu[i].gyro, b.imu[i].gyro) << i;
+    ASSERT_EQ(a.imu[i].accel, b.imu[i].accel) << i;
+  }
+  ASSERT_EQ(a.lidar_scans.size(), b.lidar_scans.size());
+  for (size_t k = 0; k < a.lidar_scans.size(); ++k) {
+    ASSERT_EQ(a.lidar_scans[k].size(), b.lidar_scans[k].size());
+    for (size_t i = 0; i < a.lidar_scans[k].size(); ++i) {
+      ASSERT_EQ(a.lidar_scans[k][i].t_ns, b.lidar_scans[k][i].t_ns);
+      const PointCloud ca = ReadPcd(a.lidar_scans[k][i].path);
+      const PointCloud cb = ReadPcd(b.lidar_scans[k][i].path);
+      ASSERT_EQ(ca.size(), cb.size());
+      for (size_t j = 0; j < ca.size(); ++j) {
+        ASSERT_EQ(ca.points[j].x, cb.points[j].x);
+        ASSERT_EQ(ca.points[j].y, cb.points[j].y);
+        ASSERT_EQ(ca.points[j].z, cb.points[j].z);
+        ASSERT_EQ(ca.points[j].intensity, cb.points[j].intensity);
+        ASSERT_EQ(ca.points[j].ring, cb.points[j].ring);
+        if (exact_times) {
+          ASSERT_EQ(ca.points[j].t, cb.points[j].t);
+        } else {
+          ASSERT_NEAR(ca.points[j].t, cb.points[j].t, 2.4e-7);  // float64 s at 1.7e9 s
+        }
+      }
+    }
+  }
+  ASSERT_EQ(a.camera_frames.size(), b.camera_frames.size());
+  for (size_t k = 0; k < a.camera_frames.size(); ++k) {
+    ASSERT_EQ(a.camera_frames[k].size(), b.camera_frames[k].size());
+    for (size_t i = 0; i < a.camera_frames[k].size(); ++i) {
+      ASSERT_EQ(a.camera_frames[k][i].t_ns, b.camera_frames[k][i].t_ns);
+      const cv::Mat ia = cv::imread(a.camera_frames[k][i].path, cv::IMREAD_UNCHANGED);
+      const cv::Mat ib = cv::imread(b.camera_frames[k][i].path, cv::IMREAD_UNCHANGED);
+      ASSERT_FALSE(ia.empty());
+      ASSERT_EQ(ia.type(), ib.type());
+      ASSERT_EQ(ia.size(), ib.size());
+      ASSERT_EQ(cv::norm(ia, ib, cv::NORM_INF), 0.0);
+    }
+  }
+  EXPECT_EQ(RigToYaml(a.rig), RigToYaml(b.rig));
+}
+
+TEST_F(BagTest, VelodyneLayoutRoundTripIsLossless) {
+  const std::string bag = dir_->File("velodyne.bag");
+  const BagPreset preset = ReadBagPreset(PresetPath("velodyne"));
+  const BagExportSummary e = ExportBag(dir_->File("seq"), preset, bag);
+  EXPECT_GT(e.num_imu, 100u);
+  EXPECT_GT(e.num_scans, 10u);
+  EXPECT_GT(e.num_images, 0u);
+  ExpectSameFolder(dir_->File("seq"), Import(bag, preset, "velodyne_seq"), true);
+}
+
+TEST_F(BagTest, CompressedBagsRoundTripLosslessly) {
+  // The first 5 scans and the IMU, no images (bz2 is slow).
+  const std::string small = dir_->File("small");
+  fs::create_directories(small + "/lidar0/data");
+  fs::copy(dir_->File("seq/rig.yaml"), small + "/rig.yaml");
+  fs::copy(dir_->File("seq/imu0"), small + "/imu0");
+  std::string index = "#timestamp [ns],filename\n";
+  const Sequence seq = ReadSequence(dir_->File("seq"));
+  for (const SensorFile& f : seq.lidar_scans[0]) {
+    if (std::count(index.begin(), index.end(), '\n') > 5) break;
+    const std::string name = fs::path(f.path).filename().string();
+    fs::copy(f.path, small + "/lidar0/data/" + name);
+    index += std::to_string(f.t_ns) + "," + name + "\n";
+  }
+  test::WriteText(small + "/lidar0/data.csv", index);
+  const BagPreset preset = ReadBagPreset(PresetPath("velodyne"));
+  for (const std::string compression : {"lz4", "bz2"}) {
+    const std::string bag = dir_->File(compression + ".bag");
+    ExportBag(small, preset, bag, compression);
+    ExpectSameFolder(small, Import(bag, preset, compression + "_seq"), true);
+  }
+}
+
+TEST_F(BagTest, Hilti2022LayoutRoundTripKeepsEverythingButSubMicrosecondTimes) {
+  const std::string bag = dir_->File("hilti.bag");
+  const BagPreset preset = ReadBagPreset(PresetPath("hilti2022"));
+  ExportBag(dir_->File("seq"), preset, bag);
+  const std::string seq1 = Import(bag, preset, "hilti_seq");
+  ExpectSameFolder(dir_->File("seq"), seq1, false);
+  // bag -> folder -> bag -> folder: the second round changes nothing.
+  const std::string bag2 = dir_->File("hilti2.bag");
+  ExportBag(seq1, preset, bag2);
+  ExpectSameFolder(seq1, Import(bag2, preset, "hilti_seq2"), true);
+}
+
+TEST_F(BagTest, CameraRateKeepsFramesAtMostThatOften) {
+  const std::string bag = dir_->File("rate.bag");
+  const BagPreset preset = ReadBagPreset(PresetPath("velodyne"));
+  ExportBag(dir_->File("seq"), preset, bag);
+  const Sequence all = ReadSequence(dir_->File("seq"));
+  const Sequence some = ReadSequence(Import(bag, preset, "rate_seq", 1.0));
+  ASSERT_FALSE(all.camera_frames.empty());
+  ASSERT_GE(all.camera_frames[0].size(), 4u);  // 2 Hz over 2 s
+  for (size_t k = 0; k < some.camera_frames.size(); ++k) {
+    EXPECT_EQ(some.camera_frames[k].size(), (all.camera_frames[k].size() + 1) / 2) << k;
+    for (size_t i = 1; i < some.camera_frames[k].size(); ++i) {
+      EXPECT_GE(some.camera_frames[k][i].t_ns - some.camera_frames[k][i - 1].t_ns, 900000000);
+    }
+  }
+}
+
+TEST_F(BagTest, CameraTimeShiftIsAppliedOnceAtImport) {
+  const std::string bag = dir_->File("shift.bag");
+  const BagPreset preset = ReadBagPreset(PresetPath("velodyne"));
+  ExportBag(dir_->File("seq"), preset, bag);
+  Rig rig = ReadRigYaml(dir_->File("seq/rig.yaml"));
+  ASSERT_FALSE(rig.cameras.empty());
+  for (size_t k = 0; k < rig.cameras.size(); ++k) rig.cameras[k].timeshift_cam_imu_s = 0.002 * k;
+  const std::string out = dir_->File("shift_seq");
+  fs::create_directories(out);
+  ImportBag(bag,
+            rig,
+            FolderRigYaml(rig, ReadFile(dir_->File("seq/rig.yaml"))),
+            preset,
+            BagImportOptions(),
+            out);
+  const Sequence a = ReadSequence(dir_->File("seq"));
+  const Sequence b = ReadSequence(out);
+  for (size_t k = 0; k < b.camera_frames.size(); ++k) {
+    EXPECT_EQ(b.rig.cameras[k].timeshift_cam_imu_s, 0.0) << k;  // not applied a second time
+    ASSERT_EQ(a.camera_frames[k].size(), b.camera_frames[k].size());
+    for (size_t i = 0; i < a.camera_frames[k].size(); ++i) {
+      EXPECT_EQ(b.camera_frames[k][i].t_ns, a.camera_frames[k][i].t_ns + 2000000 * int64_t(k));
+    }
+  }
+  ASSERT_EQ(a.lidar_scans[0].size(), b.lidar_scans[0].size());
+  EXPECT_EQ(a.lidar_scans[0][3].t_ns, b.lidar_scans[0][3].t_ns);
+  // Without shifts the calibration file is copied as it is.
+  EXPECT_EQ(FolderRigYaml(a.rig, "text"), "text");
+}
+
+TEST_F(BagTest, BadBagsAreOneInputErrorNamingBagTopicAndMessage) {
+  const BagPreset velodyne = ReadBagPreset(PresetPath("velodyne"));
+  const std::string good = dir_->File("good.bag");
+  ExportBag(dir_->File("seq"), velodyne, good);
+
+  // Not a bag at all.
+  const std::string text = dir_->File("not_a.bag");
+  test::WriteText(text, "hello, I am not a bag\n");
+  ExpectImportError(text, velodyne, {text, "not a readable ROS1 bag"});
+
+  // Truncated: the first 60 % of a valid bag (no index at the end).
+  const std::string truncated = dir_->File("truncated.bag");
+  {
+    const std::string bytes = ReadFile(good);
+    test::WriteText(truncated, bytes.substr(0, bytes.size() * 6 / 10));
+  }
+  ExpectImportError(truncated, velodyne, {truncated, "truncated, unindexed or corrupted"});
+
+  // A corrupted lz4 chunk in the middle of a bag.
+  const std::string corrupted = dir_->File("corrupted.bag");
+  {
+    ExportBag(dir_->File("seq"), velodyne, corrupted, "lz4");
+    std::string bytes = ReadFile(corrupted);
+    for (size_t i = bytes.size() / 2; i < bytes.size() / 2 + 4096; ++i) {
+      bytes[i] = static_cast<char>(bytes[i] * 7 + 13);
+    }
+    test::WriteText(corrupted, bytes);
+  }
+  ExpectImportError(corrupted, velodyne, {corrupted, "bag read failed after topic"});
+
+  // A preset whose IMU topic the bag does not have.
+  BagPreset no_imu = velodyne;
+  no_imu.imu_topic = "/alphasense/imu";
+  ExpectImportError(good, no_imu, {good, "/alphasense/imu", "not in the bag"});
+
+  // A preset expecting Hesai's `timestamp` on a Velodyne-layout bag.
+  BagPreset no_time = velodyne;
+  no_time.lidar_fields.time.name = "timestamp";
+  ExpectImportError(
+      good, no_time, {good, "topic /velodyne_points message 0", "no per-point time field"});
+
+  // Hand-written bags: an unsupported image encoding, IMU out of order.
+  const std::string hand = dir_->File("hand.bag");
+  {
+    rosbag::Bag bag(hand, rosbag::bagmode::Write);
+    for (int i = 0; i < 3; ++i) {
+      sensor_msgs::Imu m;
+      m.header.stamp = ros::Time(100, i == 2 ? 0 : 1000 * (i + 1));  // message 2 goes back
+      bag.write("/imu/data", ros::Time(100, 1000 * (i + 1)), m);
+    }
+    sensor_msgs::Image image;
+    image.header.stamp = ros::Time(100, 500);
+    image.width = 2;
+    image.height = 2;
+    image.encoding = "16UC1";
+    image.step = 4;
+    image.data.assign(8, 0);
+    bag.write("/cam0/image_raw", ros::Time(100, 500), image);
+    bag.write("/cam0/image_raw", ros::Time(100, 600), image);
+    bag.close();
+  }
+  BagPreset imu_only = velodyne;
+  imu_only.lidar_topics.clear();
+  imu_only.camera_topics.clear();
+  ExpectImportError(hand, imu_only, {hand, "topic /imu/data message 2", "not after the previous"});
+  BagPreset with_camera = imu_only;
+  with_camera.camera_topics = {"/cam0/image_raw"};
+  ExpectImportError(hand,
+                    with_camera,
+                    {hand, "topic /cam0/image_raw message 0", "encoding '16UC1' not supported"});
+
+  // A topic of the wrong type.
+  BagPreset wrong_type = imu_only;
+  wrong_type.imu_topic = "/cam0/image_raw";
+  ExpectImportError(hand, wrong_type, {hand, "/cam0/image_raw", "expected sensor_msgs/Imu"});
+}
+
+TEST(BagPresetTest, BadPresetsNameFileAndKey) {
+  test::TempDir dir;
+  const std::string path = dir.File("p.yaml");
+  test::WriteText(path, "imu_topic: /imu\nlidar_fields: {time_unit: ms}\n");
+  try {
+    ReadBagPreset(path);
+    ADD_FAILURE() << "no error";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("lidar_fields.time_unit"), std::string::npos) << e.what();
+  }
+  test::WriteText(path, "lidar_topics: [/p]\n");
+  EXPECT_THROW(ReadBagPreset(path), InputError);  // no imu_topic
+}
+
+}  // namespace
+}  // namespace lisfm
