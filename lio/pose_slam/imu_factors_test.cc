@@ -35,7 +35,9 @@ sim::SplineTrajectory Walk(std::vector<sim::StationaryPeriod>* rests = nullptr) 
   sim::WalkingRoute route;
   route.waypoints = {Vec3(0, 0, 1.4), Vec3(12, 0, 1.4), Vec3(12, 8, 1.4), Vec3(0, 8, 1.4)};
   route.closed = true;
-  return sim::GenerateWalking(route, 30.0, kStartNs, 7, sim::WalkingOptions(), rests);
+  sim::WalkingOptions options;
+  options.num_stops = 3;  // rests at the start, middle and end
+  return sim::GenerateWalking(route, 30.0, kStartNs, 7, options, rests);
 }
 
 // Samples at 400 Hz: exact, plus a constant bias and BMI085 white noise when asked.

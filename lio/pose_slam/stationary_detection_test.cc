@@ -24,7 +24,9 @@ sim::SplineTrajectory Walk(double duration_s,
   sim::WalkingRoute route;
   route.waypoints = {Vec3(0, 0, 1.4), Vec3(12, 0, 1.4), Vec3(12, 8, 1.4), Vec3(0, 8, 1.4)};
   route.closed = true;
-  return sim::GenerateWalking(route, duration_s, kStartNs, seed, sim::WalkingOptions(), rests);
+  sim::WalkingOptions options;
+  options.num_stops = 3;  // rests at the start, middle and end
+  return sim::GenerateWalking(route, duration_s, kStartNs, seed, options, rests);
 }
 
 // The simulator's realistic IMU (sim/imu_simulator.h, sim/imu_errors.h):

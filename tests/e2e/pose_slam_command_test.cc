@@ -32,6 +32,10 @@ class PoseSlamCommandTest : public ::testing::Test {
     sim::SimulatorOptions options;
     options.duration = 30.0;
     options.camera_rate = 0;
+    // The walk and error sources the bounds below were set on: rests at the start,
+    // middle and end; no people (dynamics).
+    options.walk.num_stops = 3;
+    options.error_sources = "calibration,imu,lidar";  // camera_rate 0: no images
     options.output_path = dir_->File("seq");
     sim::Simulate(options, sim::PrepareRig(Rig(), "spinning"));
     std::string out;
