@@ -36,9 +36,11 @@ class DatabaseImporterTest : public ::testing::Test {
   static void SetUpTestSuite() {
     dir_ = new test::TempDir();
     std::string out;
-    // 14 s of office at 1 rig frame per second, default error sources.
+    // 14 s of office at 1 rig frame per second, the walk and error sources the bounds
+    // below were set on: rests at the start, middle and end; no people (dynamics).
     ok_ = test::RunCommand(test::LisfmBinary() +
-                               " simulate --scene office --duration 14 "
+                               " simulate --scene office --duration 14 --Walk.num_stops 3 "
+                               "--error_sources calibration,imu,lidar,camera "
                                "--camera_rate 1 --quiet 1 --output_path " +
                                Seq() + " 2>&1",
                            &out) == 0;
