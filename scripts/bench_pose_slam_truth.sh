@@ -1,0 +1,137 @@
+#!/usr/bin/env bash
+# pose_slam with ground truth as its "lio" input: every factor group alone must
+# leave ground-truth keyframes (nearly) where they are; one that moves them has a
+# convention, time or frame error or a shared (systematic) error its covariance
+# does not hold. Also reports the kept Bayesian ICP pairs against ground truth:
+# NEES per pair and the mean (signed) error per index-step bin, which shows a
+# bias shared by the pairs (independent errors average to 0 over hundreds of pairs).
+#   scripts/bench_pose_slam_truth.sh SEQ LIO WORK_DIR
+# SEQ: a `lisfm simulate` folder (groundtruth.csv), LIO: `lisfm lio` on it (its
+# keyframe clouds are reused; its stamps give the scan and keyframe times). The
+# fake lio folder holds ground truth (world_from_imu, the simulator's world, linear /
+# slerp interpolation of the 100 Hz ground truth) at lio's stamps.
+# Assumes a built tree.
+set -euo pipefail
+source "$(dirname "${BASH_SOURCE[0]}")/common.sh"
+SEQ="$1"; LIO="$2"; WORK="$3"
+[ -x "$LISFM" ] || { echo "bench_pose_slam_truth: build first ($LISFM missing)" >&2; exit 1; }
+mkdir -p "$WORK"
+
+TOOLS="$WORK/truth_tools.py"
+cat > "$TOOLS" <<'PY'
+import bisect, math, os, sys
+def qmul(a, b):
+    ax, ay, az, aw = a; bx, by, bz, bw = b
+    return (aw*bx + ax*bw + ay*bz - az*by, aw*by - ax*bz + ay*bw + az*bx,
+            aw*bz + ax*by - ay*bx + az*bw, aw*bw - ax*bx - ay*by - az*bz)
+def qconj(a): return (-a[0], -a[1], -a[2], a[3])
+def qrot(q, v): return qmul(qmul(q, (v[0], v[1], v[2], 0.0)), qconj(q))[:3]
+def qlog(q):
+    if q[3] < 0: q = tuple(-x for x in q)
+    n = math.sqrt(q[0]**2 + q[1]**2 + q[2]**2)
+    if n < 1e-12: return (2*q[0], 2*q[1], 2*q[2])
+    a = 2*math.atan2(n, q[3]); return tuple(a*x/n for x in q[:3])
+def slerp(a, b, s):
+    d = sum(x*y for x, y in zip(a, b))
+    if d < 0: b = [-x for x in b]; d = -d
+    if d > 0.9999995: r = [x + s*(y - x) for x, y in zip(a, b)]
+    else:
+        th = math.acos(d)
+        r = [(math.sin((1 - s)*th)*x + math.sin(s*th)*y)/math.sin(th) for x, y in zip(a, b)]
+    n = math.sqrt(sum(x*x for x in r)); return [x/n for x in r]
+class Truth:
+    def __init__(self, seq):
+        self.t, self.p, self.q = [], [], []
+        for line in open(seq + "/groundtruth.csv"):
+            if line.startswith("#") or not line.strip(): continue
+            v = line.split(","); w, x, y, z = (float(a) for a in v[4:8])
+            self.t.append(int(v[0])); self.p.append([float(a) for a in v[1:4]]); self.q.append([x, y, z, w])
+    def __call__(self, t_ns):
+        k = max(0, min(bisect.bisect_right(self.t, t_ns) - 1, len(self.t) - 2))
+        s = (t_ns - self.t[k]) / (self.t[k + 1] - self.t[k])
+        return ([a + s*(b - a) for a, b in zip(self.p[k], self.p[k + 1])],
+                slerp(self.q[k], self.q[k + 1], s))
+def rel(pa, qa, pb, qb):
+    return qrot(qconj(qa), [b - a for a, b in zip(pa, pb)]), qmul(qconj(qa), qb)
+def tum_ns(field):
+    sec, frac = field.split("."); return int(sec)*10**9 + int(frac.ljust(9, "0"))
+def make_lio(seq, lio, out):
+    gt = Truth(seq); os.makedirs(out + "/keyframes", exist_ok=True)
+    lines = open(lio + "/trajectory.txt").read().splitlines()
+    with open(out + "/trajectory.txt", "w") as f:
+        f.write(lines[0] + "\n")
+        for line in lines[1:]:
+            if not line.strip() or line.startswith("#"): continue
+            t = tum_ns(line.split()[0]); p, q = gt(t)
+            f.write("%d.%09d %s\n" % (t // 10**9, t % 10**9, " ".join("%.12f" % x for x in p + q)))
+    lines = open(lio + "/keyframes/keyframes.csv").read().splitlines()
+    with open(out + "/keyframes/keyframes.csv", "w") as f:
+        f.write(lines[0] + "\n")
+        for line in lines[1:]:
+            if not line.strip() or line.startswith("#"): continue
+            t = int(line.split(",")[0]); p, q = gt(t)
+            f.write("%d,%s\n" % (t, ",".join("%.12f" % x for x in p + q)))
+            dst = out + "/keyframes/%d.pcd" % t
+            if not os.path.exists(dst): os.symlink(os.path.abspath(lio + "/keyframes/%d.pcd" % t), dst)
+def report(seq, out, name):
+    gt = Truth(seq); kf = []
+    for line in open(out + "/keyframes.txt"):
+        if line.startswith("#") or not line.strip(): continue
+        v = line.split(); kf.append((tum_ns(v[0]), [float(x) for x in v[1:4]], [float(x) for x in v[4:8]]))
+    se = re = 0.0
+    for t, p, q in kf:
+        pg, qg = gt(t); se += sum((a - b)**2 for a, b in zip(p, pg))
+        re += sum(x*x for x in qlog(qmul(qconj(q), qg)))
+    print("| %s | %.2f | %.4f |" % (name, 1000*math.sqrt(se/len(kf)), math.degrees(math.sqrt(re/len(kf)))), end="")
+    stamps = [k[0] for k in kf]; bins = {}; nees = []
+    path = out + "/constraints.txt"
+    for l in (open(path) if os.path.exists(path) else []):
+        if not l.strip() or l.startswith("#"): continue
+        v = l.split(); ti, tj = int(v[0]), int(v[1]); t = [float(x) for x in v[2:5]]
+        q = [float(x) for x in v[5:9]]; c = [float(x) for x in v[9:30]]
+        pa, qa = gt(ti); pb, qb = gt(tj); tg, qg = rel(pa, qa, pb, qb)
+        xi = list(qlog(qmul(qconj(q), qg))) + list(qrot(qconj(q), [b - a for a, b in zip(t, tg)]))
+        C = [[0.0]*6 for _ in range(6)]; k = 0
+        for a in range(6):
+            for b in range(a, 6): C[a][b] = C[b][a] = c[k]; k += 1
+        # NEES by Gauss-Jordan (6x6)
+        A = [C[r][:] + [xi[r]] for r in range(6)]
+        for col in range(6):
+            piv = max(range(col, 6), key=lambda r: abs(A[r][col])); A[col], A[piv] = A[piv], A[col]
+            for r in range(6):
+                if r != col:
+                    f = A[r][col]/A[col][col]; A[r] = [x - f*y for x, y in zip(A[r], A[col])]
+        nees.append(sum(xi[r]*A[r][6]/A[r][r] for r in range(6)))
+        step = stamps.index(tj) - stamps.index(ti)
+        bins.setdefault(step // 5 * 5, []).append((math.sqrt(sum(x*x for x in tg)), xi))
+    if not nees: print(" - | - |"); return
+    print(" %d | %.1f / %.0f |" % (len(nees), sum(nees)/len(nees), 100.0*sum(x < 12.59 for x in nees)/len(nees)))
+    for s in sorted(bins):
+        b = bins[s]; n = len(b); m = [sum(x[1][k] for x in b)/n for k in range(6)]
+        print("    steps %d-%d: %d pairs, %.1f m apart; mean error (truth - pair, pair frame): "
+              "rotation [%s] deg, translation [%s] mm" % (s, s + 4, n, sum(x[0] for x in b)/n,
+              ", ".join("%+.4f" % math.degrees(x) for x in m[:3]),
+              ", ".join("%+.2f" % (1000*x) for x in m[3:])))
+if __name__ == "__main__":
+    (make_lio if sys.argv[1] == "make" else report)(*sys.argv[2:])
+PY
+
+/usr/bin/python3 "$TOOLS" make "$SEQ" "$LIO" "$WORK/truth_lio"
+run() {  # name, pose_slam options...
+  local name=$1; shift
+  "$LISFM" pose_slam --input_path "$SEQ" --lio_path "$WORK/truth_lio" --output_path "$WORK/$name" \
+    --overwrite 1 --quiet "$@" > /dev/null
+  /usr/bin/python3 "$TOOLS" report "$SEQ" "$WORK/$name" "$name"
+}
+NO_EXTRA="--PoseSlam.imu_gyro_error 0 --PoseSlam.imu_accel_error 0
+  --PoseSlam.bias_instability_gyro 0 --PoseSlam.bias_instability_accel 0"
+EXACT_ODOMETRY="--PoseSlam.odometry_sigma_rotation_deg 1e-4 --PoseSlam.odometry_sigma_translation 1e-5
+  --PoseSlam.odometry_sigma_rotation_deg_per_m 0 --PoseSlam.odometry_sigma_translation_per_m 0"
+echo "| factors on ground truth | keyframe position RMS mm | rotation RMS deg | kept pairs | pair NEES mean / % in 95 % |"
+echo "|---|---|---|---|---|"
+run odometry --PoseSlam.use_icp_pairs 0 --PoseSlam.use_imu 0 --PoseSlam.use_zero_velocity 0
+# shellcheck disable=SC2086
+run imu_exact_odometry --PoseSlam.use_icp_pairs 0 --PoseSlam.use_zero_velocity 0 \
+  --PoseSlam.piecewise_bias 0 $NO_EXTRA $EXACT_ODOMETRY
+run imu --PoseSlam.use_icp_pairs 0 --PoseSlam.use_zero_velocity 0 --PoseSlam.piecewise_bias 0
+run icp_pairs --PoseSlam.use_imu 0 --PoseSlam.use_zero_velocity 0
