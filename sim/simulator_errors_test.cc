@@ -352,8 +352,9 @@ double ImageCorrelation(const cv::Mat& a, const cv::Mat& b) {
 // points cast again from the true pose hit the scene near their range
 // (incidence noise, mixed pixels and range limits spread the residuals, so
 // the check is the median) and far from it at rig.yaml's pose; each image
-// (exposure, blur, lighting, noise) correlates best with a clean render at the
-// true capture pose.
+// (exposure, blur, lighting, noise) correlates with a clean render at the true
+// capture pose at least 1.5 times as well as with one at rig.yaml's pose
+// (measured 1.9-4.8 times over the 5 cameras; about 1 if the pose were wrong).
 TEST(SimulatorErrors, LidarAndCameraSourcesUseTheTrueCalibration) {
   test::TempDir dir;
   SimulatorOptions options;
@@ -439,7 +440,7 @@ TEST(SimulatorErrors, LidarAndCameraSourcesUseTheTrueCalibration) {
       std::printf("%s frame %zu: correlation with the render at the true pose %.3f, at "
                   "rig.yaml's %.3f\n",
                   ct.name.c_str(), f, at_true, at_believed);
-      EXPECT_GT(at_true, at_believed + 0.2) << ct.name << " frame " << f;
+      EXPECT_GT(at_true, 1.5 * at_believed) << ct.name << " frame " << f;
     }
   }
 }
