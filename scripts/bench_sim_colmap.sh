@@ -7,18 +7,19 @@
 # of models, and the wall time of each COLMAP step.
 #   scripts/bench_sim_colmap.sh [WORK_DIR] [DURATION_S] [CAMERA_RATE_HZ] [SEED] [SOURCE_LISTS]
 #   (defaults: /tmp/lisfm_bench_sim_colmap, 60, 0.25, 4,
-#   "all calibration,imu,lidar,dynamics")
+#   "all calibration,imu,dynamics")
 # The recordings differ only in --error_sources: by default "all" and every source except the
-# camera one. CPU matching costs about (features per image)^2 per pair: the clean images (~8k
-# SIFT each) take ~4x as long as those with the camera sources. Rows are appended to
-# WORK_DIR/colmap.md as each run ends (a list already there is skipped).
+# camera one (and lidar, which needs a LiDAR: none is simulated here). CPU matching costs about
+# (features per image)^2 per pair: the clean images (~8k SIFT each) take ~4x as long as those
+# with the camera sources. Rows are appended to WORK_DIR/colmap.md as each run ends (a list
+# already there is skipped).
 set -euo pipefail
 source "$(dirname "${BASH_SOURCE[0]}")/common.sh"
 WORK="${1:-/tmp/lisfm_bench_sim_colmap}"
 DURATION="${2:-60}"
 RATE="${3:-0.25}"
 SEED="${4:-4}"
-SOURCE_LISTS="${5:-all calibration,imu,lidar,dynamics}"
+SOURCE_LISTS="${5:-all calibration,imu,dynamics}"
 [ -x "$LISFM" ] || { echo "bench_sim_colmap: build first ($LISFM missing)" >&2; exit 1; }
 command -v colmap > /dev/null || { echo "bench_sim_colmap: colmap not found" >&2; exit 1; }
 mkdir -p "$WORK"
