@@ -5,6 +5,7 @@
 
 #include "core/errors.h"
 #include "core/option_check.h"
+#include "sim/hash_random.h"
 
 namespace lisfm {
 namespace sim {
@@ -13,15 +14,6 @@ namespace {
 constexpr uint64_t kLidarStream = 0x4C69446172ULL;   // "LiDar"
 constexpr uint64_t kCameraStream = 0x43616D6572ULL;  // "Camer"
 constexpr uint64_t kSharedCameraIndex = ~uint64_t{0};
-
-uint64_t Mix64(uint64_t x) {  // splitmix64 finaliser
-  x ^= x >> 30;
-  x *= 0xbf58476d1ce4e5b9ULL;
-  x ^= x >> 27;
-  x *= 0x94d049bb133111ebULL;
-  x ^= x >> 31;
-  return x;
-}
 
 // The random stream of one sensor: a function of (seed, kind, index) only.
 std::mt19937_64 SensorRng(uint64_t seed, uint64_t kind, uint64_t index) {

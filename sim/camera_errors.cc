@@ -5,20 +5,11 @@
 
 #include "core/errors.h"
 #include "core/option_check.h"
+#include "sim/hash_random.h"
 
 namespace lisfm {
 namespace sim {
 namespace {
-
-inline uint64_t Mix64(uint64_t x) {  // splitmix64 finaliser
-  x ^= x >> 30;
-  x *= 0xbf58476d1ce4e5b9ULL;
-  x ^= x >> 27;
-  x *= 0x94d049bb133111ebULL;
-  x ^= x >> 31;
-  return x;
-}
-inline double HashUniform(uint64_t h) { return static_cast<double>(h >> 11) * 0x1.0p-53; }
 
 constexpr float kStoreyCell = 3.0f;  // vertical lattice spacing, m
 

@@ -9,6 +9,7 @@
 
 #include "core/errors.h"
 #include "core/option_check.h"
+#include "sim/hash_random.h"
 
 namespace lisfm {
 namespace sim {
@@ -82,27 +83,6 @@ CameraRenderer::CameraRenderer(const Scene& scene,
     });
   }
 }
-
-namespace {
-
-inline uint64_t Mix64(uint64_t x) {  // splitmix64 finaliser
-  x ^= x >> 30;
-  x *= 0xbf58476d1ce4e5b9ULL;
-  x ^= x >> 27;
-  x *= 0x94d049bb133111ebULL;
-  x ^= x >> 31;
-  return x;
-}
-
-// Approximately standard normal from a 64-bit hash: the sum of four 16-bit
-// uniforms (Irwin-Hall, variance 4/12) centred and scaled to unit variance.
-inline float HashGaussian(uint64_t h) {
-  const float sum = static_cast<float>((h & 0xffff) + ((h >> 16) & 0xffff) +
-                                       ((h >> 32) & 0xffff) + (h >> 48));
-  return (sum * (1.0f / 65536.0f) - 2.0f) * 1.7320508f;
-}
-
-}  // namespace
 
 cv::Mat CameraRenderer::Render(const SE3& world_from_cam,
                                uint64_t noise_seed,

@@ -11,6 +11,7 @@
 #include "core/errors.h"
 #include "core/file_utils.h"
 #include "core/option_check.h"
+#include "sim/hash_random.h"
 
 namespace lisfm {
 namespace sim {
@@ -19,15 +20,6 @@ namespace {
 constexpr uint64_t kImuStream = 0x496D754572ULL;        // "ImuEr"
 constexpr uint64_t kTemperatureStream = 0x54656D70ULL;  // "Temp"
 constexpr double kStandardGravity = 9.80665;            // m/s^2 per g (mg -> m/s^2)
-
-uint64_t Mix64(uint64_t x) {  // splitmix64 finaliser
-  x ^= x >> 30;
-  x *= 0xbf58476d1ce4e5b9ULL;
-  x ^= x >> 27;
-  x *= 0x94d049bb133111ebULL;
-  x ^= x >> 31;
-  return x;
-}
 
 std::mt19937_64 StreamRng(uint64_t seed, uint64_t stream) {
   return std::mt19937_64(Mix64(seed * 0x9E3779B97F4A7C15ULL + stream));

@@ -7,6 +7,7 @@
 
 #include "core/errors.h"
 #include "core/option_check.h"
+#include "sim/hash_random.h"
 
 namespace lisfm {
 namespace sim {
@@ -29,23 +30,6 @@ Vec3 RosetteDirection(double tau, double half_fov) {
   const double b = 0.5 * half_fov * (std::sin(r1) - std::sin(r2));
   const double theta = std::hypot(a, b), phi = std::atan2(b, a);
   return Vec3(std::cos(theta), std::sin(theta) * std::cos(phi), std::sin(theta) * std::sin(phi));
-}
-
-inline uint64_t Mix64(uint64_t x) {  // splitmix64 finaliser
-  x ^= x >> 30;
-  x *= 0xbf58476d1ce4e5b9ULL;
-  x ^= x >> 27;
-  x *= 0x94d049bb133111ebULL;
-  x ^= x >> 31;
-  return x;
-}
-// Uniform in [0, 1) from the top 53 bits of a hash.
-inline double HashUniform(uint64_t h) { return static_cast<double>(h >> 11) * 0x1.0p-53; }
-// Standard normal from a hash (Box-Muller on its two 32-bit halves).
-inline double HashNormal(uint64_t h) {
-  const double u1 = (static_cast<double>(h >> 32) + 0.5) * 0x1.0p-32;
-  const double u2 = (static_cast<double>(h & 0xffffffffULL) + 0.5) * 0x1.0p-32;
-  return std::sqrt(-2.0 * std::log(u1)) * std::cos(2.0 * M_PI * u2);
 }
 
 // Streams of the counter-based draws of one beam.

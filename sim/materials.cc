@@ -2,6 +2,7 @@
 
 #include "core/errors.h"
 #include "core/option_check.h"
+#include "sim/hash_random.h"
 
 namespace lisfm {
 namespace sim {
@@ -21,15 +22,6 @@ const std::vector<Material> kMaterials = {
 };
 
 MaterialId Id(const char* name) { return *FindMaterial(name); }
-
-inline uint64_t Mix64(uint64_t x) {  // splitmix64 finaliser
-  x ^= x >> 30;
-  x *= 0xbf58476d1ce4e5b9ULL;
-  x ^= x >> 27;
-  x *= 0x94d049bb133111ebULL;
-  x ^= x >> 31;
-  return x;
-}
 
 }  // namespace
 
