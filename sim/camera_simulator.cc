@@ -25,6 +25,73 @@ bool CameraSimOptions::Check() const {
   return true;
 }
 
+namespace {
+
+// Casts `samples` rays per pixel (rays[pixel * samples + s], camera frame,
+// rotated by `rot` from `origin`) at time t_ns, in 16-ray packets of 4x4 pixels,
+// TBB-parallel over rows of packets. Per pixel an accumulator starts at zero;
+// on_hit(acc, index, s, hit, point) is called for each hit of sample s, in
+// sample order, then on_pixel(index, x, y, acc) once. index = y * width + x.
+template <typename OnHit, typename OnPixel>
+void TracePixelPackets(const Scene& scene,
+                       const std::vector<Eigen::Vector3f>& rays,
+                       int samples,
+                       int width,
+                       int height,
+                       const Eigen::Matrix3f& rot,
+                       const Eigen::Vector3f& origin,
+                       TimestampNs t_ns,
+                       float max_range,
+                       const OnHit& on_hit,
+                       const OnPixel& on_pixel) {
+  const float origin_arr[3] = {origin.x(), origin.y(), origin.z()};
+  constexpr int kBlock = 4;  // 4x4 pixel blocks: one 16-ray packet per sample
+  const int block_rows = (height + kBlock - 1) / kBlock;
+  tbb::parallel_for(
+      tbb::blocked_range<int>(0, block_rows, 2), [&](const tbb::blocked_range<int>& r) {
+        for (int by = r.begin(); by != r.end(); ++by) {
+          const int y0 = by * kBlock;
+          for (int x0 = 0; x0 < width; x0 += kBlock) {
+            int pixel_x[16], pixel_y[16], valid[16];
+            size_t index[16];
+            for (int k = 0; k < 16; ++k) {
+              pixel_x[k] = x0 + (k & 3);
+              pixel_y[k] = y0 + (k >> 2);
+              valid[k] = pixel_x[k] < width && pixel_y[k] < height;
+              index[k] = static_cast<size_t>(pixel_y[k]) * width + pixel_x[k];
+            }
+            Eigen::Vector3f acc[16];
+            for (int k = 0; k < 16; ++k) acc[k].setZero();
+            for (int s = 0; s < samples; ++s) {
+              float dirs[16][3];
+              for (int k = 0; k < 16; ++k) {
+                const Eigen::Vector3f d = valid[k]
+                                              ? Eigen::Vector3f(rot * rays[index[k] * samples + s])
+                                              : Eigen::Vector3f::UnitZ();
+                dirs[k][0] = d.x();
+                dirs[k][1] = d.y();
+                dirs[k][2] = d.z();
+              }
+              RayHit hits[16];
+              scene.Intersect16At(
+                  t_ns, valid, origin_arr, dirs, max_range, /*coherent=*/true, hits);
+              for (int k = 0; k < 16; ++k) {
+                if (!valid[k] || !hits[k].hit) continue;
+                const Eigen::Vector3f p =
+                    origin + hits[k].distance * Eigen::Vector3f(dirs[k][0], dirs[k][1], dirs[k][2]);
+                on_hit(acc[k], index[k], s, hits[k], p);
+              }
+            }
+            for (int k = 0; k < 16; ++k) {
+              if (valid[k]) on_pixel(index[k], pixel_x[k], pixel_y[k], acc[k]);
+            }
+          }
+        }
+      });
+}
+
+}  // namespace
+
 CameraRenderer::CameraRenderer(const Scene& scene,
                                const CameraModel& model,
                                const TextureOptions& texture,
@@ -91,77 +158,46 @@ cv::Mat CameraRenderer::Render(const SE3& world_from_cam,
   cv::Mat image(h, w, options_.color ? CV_8UC3 : CV_8UC1);
   const Eigen::Matrix3f rot = world_from_cam.RotationMatrix().cast<float>();
   const Eigen::Vector3f origin = world_from_cam.translation().cast<float>();
-  const float origin_arr[3] = {origin.x(), origin.y(), origin.z()};
   const Eigen::Vector3f light = Eigen::Vector3f(0.3f, 0.5f, 0.81f).normalized();
   const float max_range = static_cast<float>(options_.max_range);
   const float gain = static_cast<float>(options_.exposure) * 255.f;
   const float sigma = static_cast<float>(options_.noise_sigma * options_.noise_scale);
   const bool color = options_.color;
   const uint64_t noise_key = Mix64(noise_seed * 0x9E3779B97F4A7C15ULL + 0x632BE59BD9B4E019ULL);
-  constexpr int kBlock = 4;  // 4x4 pixel blocks: one 16-ray packet per subsample
-  const int block_rows = (h + kBlock - 1) / kBlock;
-  const tbb::blocked_range<int> all_rows(0, block_rows, 2);
-  tbb::parallel_for(all_rows, [&](const tbb::blocked_range<int>& r) {
-    for (int by = r.begin(); by != r.end(); ++by) {
-      const int y0 = by * kBlock;
-      for (int x0 = 0; x0 < w; x0 += kBlock) {
-        int pixel_x[16], pixel_y[16], valid[16];
-        for (int k = 0; k < 16; ++k) {
-          pixel_x[k] = x0 + (k & 3);
-          pixel_y[k] = y0 + (k >> 2);
-          valid[k] = pixel_x[k] < w && pixel_y[k] < h;
+  TracePixelPackets(
+      scene_,
+      rays_,
+      samples_,
+      w,
+      h,
+      rot,
+      origin,
+      t_ns,
+      max_range,
+      [&](Eigen::Vector3f& radiance, size_t, int, const RayHit& hit, const Eigen::Vector3f& p) {
+        const float albedo = texture_.Albedo(hit.surface_id, p, TextureAxis(hit.normal));
+        const float shade = 0.55f + 0.45f * std::fabs(hit.normal.dot(light));
+        if (color) {
+          radiance += (albedo * shade) * texture_.Tint(hit.surface_id);
+        } else {
+          radiance.x() += albedo * shade;
         }
-        Eigen::Vector3f radiance[16];
-        for (int k = 0; k < 16; ++k) radiance[k].setZero();
-        for (int s = 0; s < samples_; ++s) {
-          float dirs[16][3];
-          for (int k = 0; k < 16; ++k) {
-            const Eigen::Vector3f d =
-                valid[k] ? Eigen::Vector3f(
-                               rot * rays_[(static_cast<size_t>(pixel_y[k]) * w + pixel_x[k]) *
-                                               samples_ + s])
-                         : Eigen::Vector3f::UnitZ();
-            dirs[k][0] = d.x();
-            dirs[k][1] = d.y();
-            dirs[k][2] = d.z();
+      },
+      [&](size_t index, int x, int y, const Eigen::Vector3f& radiance) {
+        const float scale = gain * vignette_[index] / samples_;
+        if (color) {
+          cv::Vec3b& px = image.at<cv::Vec3b>(y, x);
+          for (int c = 0; c < 3; ++c) {
+            float v = radiance[2 - c] * scale;  // BGR
+            if (sigma > 0) v += sigma * HashGaussian(Mix64(noise_key + 3 * index + c));
+            px[c] = cv::saturate_cast<uint8_t>(v);
           }
-          RayHit hits[16];
-          scene_.Intersect16At(t_ns, valid, origin_arr, dirs, max_range, /*coherent=*/true,
-                               hits);
-          for (int k = 0; k < 16; ++k) {
-            if (!valid[k] || !hits[k].hit) continue;
-            const Eigen::Vector3f p =
-                origin + hits[k].distance * Eigen::Vector3f(dirs[k][0], dirs[k][1], dirs[k][2]);
-            const float albedo =
-                texture_.Albedo(hits[k].surface_id, p, TextureAxis(hits[k].normal));
-            const float shade = 0.55f + 0.45f * std::fabs(hits[k].normal.dot(light));
-            if (color) {
-              radiance[k] += (albedo * shade) * texture_.Tint(hits[k].surface_id);
-            } else {
-              radiance[k].x() += albedo * shade;
-            }
-          }
+        } else {
+          float v = radiance.x() * scale;
+          if (sigma > 0) v += sigma * HashGaussian(Mix64(noise_key + index));
+          image.at<uint8_t>(y, x) = cv::saturate_cast<uint8_t>(v);
         }
-        for (int k = 0; k < 16; ++k) {
-          if (!valid[k]) continue;
-          const size_t index = static_cast<size_t>(pixel_y[k]) * w + pixel_x[k];
-          const float scale = gain * vignette_[index] / samples_;
-          if (color) {
-            cv::Vec3b& px = image.at<cv::Vec3b>(pixel_y[k], pixel_x[k]);
-            for (int c = 0; c < 3; ++c) {
-              float v = radiance[k][2 - c] * scale;  // BGR
-              if (sigma > 0) v += sigma * HashGaussian(Mix64(noise_key + 3 * index + c));
-              px[c] = cv::saturate_cast<uint8_t>(v);
-            }
-          } else {
-            float v = radiance[k].x() * scale;
-            if (sigma > 0) v += sigma * HashGaussian(Mix64(noise_key + index));
-            image.at<uint8_t>(pixel_y[k], pixel_x[k]) = cv::saturate_cast<uint8_t>(v);
-          }
-        }
-      }
-    }
-  });
+      });
   return image;
 }
 
@@ -177,72 +213,41 @@ cv::Mat CameraRenderer::Render(const SE3& world_from_cam,
   const LightField light = lighting_ != nullptr ? lighting_->At(exposure.time_s) : LightField();
   const Eigen::Matrix3f rot = world_from_cam.RotationMatrix().cast<float>();
   const Eigen::Vector3f origin = world_from_cam.translation().cast<float>();
-  const float origin_arr[3] = {origin.x(), origin.y(), origin.z()};
   const Eigen::Vector3f sun = Eigen::Vector3f(0.3f, 0.5f, 0.81f).normalized();
   const float max_range = static_cast<float>(options_.max_range);
   const size_t num_pixels = static_cast<size_t>(w) * h;
   // Radiance (before the exposure) per pixel and channel, and the hit
   // distance of each pixel's first ray (0: no hit).
   std::vector<float> radiance(num_pixels * channels, 0.f), distance(num_pixels, 0.f);
-  constexpr int kBlock = 4;
-  const int block_rows = (h + kBlock - 1) / kBlock;
-  tbb::parallel_for(tbb::blocked_range<int>(0, block_rows, 2), [&](const tbb::blocked_range<int>& r) {
-    for (int by = r.begin(); by != r.end(); ++by) {
-      const int y0 = by * kBlock;
-      for (int x0 = 0; x0 < w; x0 += kBlock) {
-        int pixel_x[16], pixel_y[16], valid[16];
-        for (int k = 0; k < 16; ++k) {
-          pixel_x[k] = x0 + (k & 3);
-          pixel_y[k] = y0 + (k >> 2);
-          valid[k] = pixel_x[k] < w && pixel_y[k] < h;
+  TracePixelPackets(
+      scene_,
+      rays_,
+      samples_,
+      w,
+      h,
+      rot,
+      origin,
+      t_ns,
+      max_range,
+      [&](Eigen::Vector3f& sum, size_t index, int s, const RayHit& hit, const Eigen::Vector3f& p) {
+        const float albedo =
+            MaterialAlbedo(scene_.material(hit.surface_id),
+                           texture_.Albedo(hit.surface_id, p, TextureAxis(hit.normal)));
+        const float shade = 0.55f + 0.45f * std::fabs(hit.normal.dot(sun));
+        const float value = albedo * shade * light.Level(p);
+        if (color) {
+          sum += value * texture_.Tint(hit.surface_id);
+        } else {
+          sum.x() += value;
         }
-        Eigen::Vector3f sum[16];
-        for (int k = 0; k < 16; ++k) sum[k].setZero();
-        for (int s = 0; s < samples_; ++s) {
-          float dirs[16][3];
-          for (int k = 0; k < 16; ++k) {
-            const Eigen::Vector3f d =
-                valid[k] ? Eigen::Vector3f(
-                               rot * rays_[(static_cast<size_t>(pixel_y[k]) * w + pixel_x[k]) *
-                                               samples_ + s])
-                         : Eigen::Vector3f::UnitZ();
-            dirs[k][0] = d.x();
-            dirs[k][1] = d.y();
-            dirs[k][2] = d.z();
-          }
-          RayHit hits[16];
-          scene_.Intersect16At(t_ns, valid, origin_arr, dirs, max_range, /*coherent=*/true,
-                               hits);
-          for (int k = 0; k < 16; ++k) {
-            if (!valid[k] || !hits[k].hit) continue;
-            const Eigen::Vector3f p =
-                origin + hits[k].distance * Eigen::Vector3f(dirs[k][0], dirs[k][1], dirs[k][2]);
-            const float albedo = MaterialAlbedo(
-                scene_.material(hits[k].surface_id),
-                texture_.Albedo(hits[k].surface_id, p, TextureAxis(hits[k].normal)));
-            const float shade = 0.55f + 0.45f * std::fabs(hits[k].normal.dot(sun));
-            const float value = albedo * shade * light.Level(p);
-            if (color) {
-              sum[k] += value * texture_.Tint(hits[k].surface_id);
-            } else {
-              sum[k].x() += value;
-            }
-            if (s == 0) {
-              distance[static_cast<size_t>(pixel_y[k]) * w + pixel_x[k]] = hits[k].distance;
-            }
-          }
+        if (s == 0) distance[index] = hit.distance;
+      },
+      [&](size_t index, int, int, const Eigen::Vector3f& sum) {
+        const float scale = vignette_[index] / samples_;
+        for (int c = 0; c < channels; ++c) {
+          radiance[index * channels + c] = sum[color ? 2 - c : 0] * scale;  // BGR
         }
-        for (int k = 0; k < 16; ++k) {
-          if (!valid[k]) continue;
-          const size_t index = static_cast<size_t>(pixel_y[k]) * w + pixel_x[k];
-          const float scale = vignette_[index] / samples_;
-          for (int c = 0; c < channels; ++c) {
-            radiance[index * channels + c] = sum[k][color ? 2 - c : 0] * scale;  // BGR
-          }
-        }
-      }
-    }
-  });
+      });
 
   // Exposure and sensor noise, in DN.
   const double product = exposure.setting.exposure_s * exposure.setting.gain;
