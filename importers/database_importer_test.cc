@@ -9,18 +9,11 @@
 #include "core/file_utils.h"
 #include "sim/motion.h"
 #include "sim/scene.h"
+#include "tests/common/sim_walks.h"
 #include "tests/common/test_utils.h"
 
 namespace lisfm {
 namespace {
-
-// The walk with three rests (start, middle, end) these tests are written for.
-sim::WalkingOptions ThreeStopWalk() {
-  sim::WalkingOptions options;
-  options.num_stops = 3;
-  return options;
-}
-
 
 constexpr double kDegToRad = M_PI / 180.0;
 

@@ -3,18 +3,12 @@
 #include <gtest/gtest.h>
 
 #include "sim/motion.h"
+#include "tests/common/sim_walks.h"
 #include "tests/common/test_utils.h"
 
 namespace lisfm {
 namespace sim {
 namespace {
-
-// The walk this test's data were made with: rests at the start, middle and end.
-WalkingOptions ThreeStopWalk() {
-  WalkingOptions options;
-  options.num_stops = 3;
-  return options;
-}
 
 // Exact distance from p to triangle (a, b, c) (Ericson, Real-Time Collision
 // Detection, 5.1.5), used as an independent check of the ray casting.

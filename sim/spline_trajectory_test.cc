@@ -4,18 +4,12 @@
 
 #include "sim/motion.h"
 #include "sim/scene.h"
+#include "tests/common/sim_walks.h"
 #include "tests/common/test_utils.h"
 
 namespace lisfm {
 namespace sim {
 namespace {
-
-// The walk this test's data were made with: rests at the start, middle and end.
-WalkingOptions ThreeStopWalk() {
-  WalkingOptions options;
-  options.num_stops = 3;
-  return options;
-}
 
 SplineTrajectory RandomSpline() {
   std::vector<Quat> rotations;

@@ -16,18 +16,11 @@
 #include "lio/pose_slam/stationary_detection.h"
 #include "sim/imu_simulator.h"
 #include "sim/motion.h"
+#include "tests/common/sim_walks.h"
 #include "tests/common/test_utils.h"
 
 namespace lisfm {
 namespace {
-
-// The walk with three rests (start, middle, end) these tests are written for.
-sim::WalkingOptions ThreeStopWalk() {
-  sim::WalkingOptions options;
-  options.num_stops = 3;
-  return options;
-}
-
 
 const Vec3 kGravity(0, 0, -sim::kGravity);
 constexpr TimestampNs kStartNs = 1'000'000'000'000LL;  // 1000 s

@@ -8,18 +8,11 @@
 #include "sim/imu_errors.h"
 #include "sim/imu_simulator.h"
 #include "sim/motion.h"
+#include "tests/common/sim_walks.h"
 #include "tests/common/test_utils.h"
 
 namespace lisfm {
 namespace {
-
-// The walk with three rests (start, middle, end) these tests are written for.
-sim::WalkingOptions ThreeStopWalk() {
-  sim::WalkingOptions options;
-  options.num_stops = 3;
-  return options;
-}
-
 
 constexpr TimestampNs kStartNs = 1'000'000'000'000LL;  // 1000 s
 

@@ -21,17 +21,11 @@
 #include "core/io/rig_io.h"
 #include "sim/camera_simulator.h"
 #include "sim/motion.h"
+#include "tests/common/sim_walks.h"
 #include "tests/common/test_utils.h"
 
 namespace lisfm {
 namespace {
-
-// The walk this test's data were made with: rests at the start, middle and end.
-sim::WalkingOptions ThreeStopWalk() {
-  sim::WalkingOptions options;
-  options.num_stops = 3;
-  return options;
-}
 
 constexpr double kDegToRad = M_PI / 180.0;
 

@@ -15,18 +15,12 @@
 #include "core/io/rig_io.h"
 #include "sim/camera_simulator.h"
 #include "sim/motion.h"
+#include "tests/common/sim_walks.h"
 #include "tests/common/test_utils.h"
 
 namespace lisfm {
 namespace sim {
 namespace {
-
-// The walk this test's data were made with: rests at the start, middle and end.
-WalkingOptions ThreeStopWalk() {
-  WalkingOptions options;
-  options.num_stops = 3;
-  return options;
-}
 
 TEST(ColmapEndToEnd, StockColmapReconstructsRenderedImages) {
   LISFM_REQUIRE_SHARED_DATA("hilti_exp4_small/calibration");
