@@ -100,153 +100,22 @@ double LidarSimulator::RingElevation(int ring) const {
   return (-16.0 + ring) * M_PI / 180.0;
 }
 
-PointCloud LidarSimulator::SimulateScan(TimestampNs scan_start_ns, int64_t scan_index) const {
-  if (options_.errors_enabled) return SimulateScanWithErrors(scan_start_ns, scan_index);
-  std::mt19937_64 rng(options_.seed * 0x9E3779B97F4A7C15ULL +
-                      static_cast<uint64_t>(scan_index) * 0xBF58476D1CE4E5B9ULL + 5);
-  std::normal_distribution<double> normal(0.0, options_.range_sigma * options_.noise_scale);
-  const bool noisy = options_.noise_scale > 0;
+size_t LidarSimulator::NumBeams() const {
+  if (lidar_.type == LidarType::kSpinning) {
+    return static_cast<size_t>(options_.azimuth_steps) * static_cast<size_t>(lidar_.rings);
+  }
+  return static_cast<size_t>(std::floor(options_.livox_rate * (1.0 / lidar_.scan_rate)));
+}
+
+template <typename Visit>
+void LidarSimulator::CastBeams(TimestampNs scan_start_ns, float spinning_max_cast,
+                               double solid_state_max_cast, Visit&& visit) const {
   const double period_s = 1.0 / lidar_.scan_rate;
-  // IMU-clock time of the first firing: poses are evaluated from here.
   const TimestampNs capture_start_ns = scan_start_ns + SecondsToNs(lidar_.time_offset_s);
-  struct Raw {
-    LidarPoint point;
-    double t_s;  // since scan_start_ns
-  };
-  std::vector<Raw> raw;
-  const float min_range = static_cast<float>(lidar_.min_range);
-  const float max_range = static_cast<float>(lidar_.max_range);
-  auto add_point = [&](const RayHit& hit, const SE3& world_from_lidar, const Vec3& dir_lidar,
-                       const Vec3& dir_world, double t_s, int ring) {
-    if (!hit.hit) return;
-    double range = hit.distance;
-    const Eigen::Vector3f hit_world =
-        (world_from_lidar.translation() + range * dir_world).cast<float>();
-    if (noisy) range += normal(rng);
-    if (range < min_range || range > max_range) return;
-    Raw r;
-    const Vec3 p = dir_lidar * range;
-    r.point.x = static_cast<float>(p.x());
-    r.point.y = static_cast<float>(p.y());
-    r.point.z = static_cast<float>(p.z());
-    r.point.intensity = Intensity(texture_, hit, hit_world, dir_world.cast<float>());
-    r.point.ring = static_cast<uint16_t>(ring);
-    r.t_s = t_s;
-    raw.push_back(r);
-  };
   if (lidar_.type == LidarType::kSpinning) {
     THROW_CHECK_GT(lidar_.rings, 0);
     const int columns = options_.azimuth_steps;
-    raw.reserve(static_cast<size_t>(columns) * lidar_.rings);
-    std::vector<double> cos_el(lidar_.rings), sin_el(lidar_.rings);
-    for (int r = 0; r < lidar_.rings; ++r) {
-      cos_el[r] = std::cos(RingElevation(r));
-      sin_el[r] = std::sin(RingElevation(r));
-    }
-    for (int c = 0; c < columns; ++c) {
-      const double t_s = period_s * c / columns;
-      const TimestampNs t_ns = capture_start_ns + SecondsToNs(t_s);
-      const SE3 world_from_lidar = trajectory_.Pose(t_ns) * lidar_.imu_from_lidar;
-      const double az = 2 * M_PI * c / columns;
-      const double cos_az = std::cos(az), sin_az = std::sin(az);
-      const float origin[3] = {static_cast<float>(world_from_lidar.translation().x()),
-                               static_cast<float>(world_from_lidar.translation().y()),
-                               static_cast<float>(world_from_lidar.translation().z())};
-      const Mat3 rot = world_from_lidar.RotationMatrix();
-      for (int r0 = 0; r0 < lidar_.rings; r0 += 16) {
-        int valid[16];
-        float dirs[16][3];
-        Vec3 dirs_lidar[16], dirs_world[16];
-        for (int k = 0; k < 16; ++k) {
-          const int r = r0 + k;
-          valid[k] = r < lidar_.rings;
-          dirs_lidar[k] = valid[k] ? Vec3(cos_el[r] * cos_az, cos_el[r] * sin_az, sin_el[r])
-                                   : Vec3::UnitX();
-          dirs_world[k] = rot * dirs_lidar[k];
-          for (int j = 0; j < 3; ++j) dirs[k][j] = static_cast<float>(dirs_world[k][j]);
-        }
-        RayHit hits[16];
-        scene_.Intersect16At(t_ns, valid, origin, dirs, max_range + 1.f, /*coherent=*/false,
-                             hits);
-        for (int k = 0; k < 16; ++k) {
-          if (!valid[k]) continue;
-          add_point(hits[k], world_from_lidar, dirs_lidar[k], dirs_world[k], t_s, r0 + k);
-        }
-      }
-    }
-  } else {
-    const int n = static_cast<int>(std::floor(options_.livox_rate * period_s));
-    raw.reserve(n);
-    const double half_fov = 0.5 * options_.livox_fov_deg * M_PI / 180.0;
-    const double scan_start_s = NsToSeconds(scan_start_ns - trajectory_.start_ns());
-    for (int i = 0; i < n; ++i) {
-      const double t_s = i / options_.livox_rate;
-      const Vec3 dir_lidar = RosetteDirection(scan_start_s + t_s, half_fov);
-      const TimestampNs t_ns = capture_start_ns + SecondsToNs(t_s);
-      const SE3 world_from_lidar = trajectory_.Pose(t_ns) * lidar_.imu_from_lidar;
-      const Vec3 dir_world = world_from_lidar.rotation() * dir_lidar;
-      const RayHit hit = scene_.IntersectAt(t_ns, world_from_lidar.translation(), dir_world, 0.0,
-                                            lidar_.max_range + 1.0);
-      add_point(hit, world_from_lidar, dir_lidar, dir_world, t_s, 0);
-    }
-  }
-  PointCloud cloud;
-  if (raw.empty()) {
-    cloud.stamp_ns = scan_start_ns;
-    return cloud;
-  }
-  const double first_s = raw.front().t_s;
-  cloud.stamp_ns = scan_start_ns + SecondsToNs(first_s);
-  cloud.points.reserve(raw.size());
-  for (Raw& r : raw) {
-    r.point.t = static_cast<float>(r.t_s - first_s);
-    cloud.points.push_back(r.point);
-  }
-  return cloud;
-}
-
-PointCloud LidarSimulator::SimulateScanWithErrors(TimestampNs scan_start_ns,
-                                                  int64_t scan_index) const {
-  const LidarErrorOptions& e = options_.errors;
-  const double period_s = 1.0 / lidar_.scan_rate;
-  const uint64_t scan_key =
-      Mix64(Mix64(options_.seed * 0x9E3779B97F4A7C15ULL + 0x4c494441ULL) +
-            static_cast<uint64_t>(scan_index) * 0xD6E8FEB86659FD93ULL);
-  auto draw = [&](uint64_t index, Stream stream) {
-    return Mix64(scan_key + Mix64(index * 4 + stream));
-  };
-  const float max_cast = static_cast<float>(lidar_.max_range) + 1.f;
-  // IMU-clock time of the first firing: poses are evaluated from here.
-  const TimestampNs capture_start_ns = scan_start_ns + SecondsToNs(lidar_.time_offset_s);
-
-  // ---- pass 1: cast every beam, keep what the error model needs ----
-  std::vector<Beam> beams;
-  auto record = [&](const RayHit& hit, const SE3& world_from_lidar, const Vec3& dir_lidar,
-                    const Vec3& dir_world, double t_s, int ring, Beam* b) {
-    b->direction = dir_lidar.cast<float>();
-    b->t_s = t_s;
-    b->ring = static_cast<uint16_t>(ring);
-    if (!hit.hit) return;
-    const Eigen::Vector3f hit_world =
-        (world_from_lidar.translation() + static_cast<double>(hit.distance) * dir_world)
-            .cast<float>();
-    b->range = hit.distance;
-    b->normal = (world_from_lidar.rotation().conjugate() * hit.normal.cast<double>()).cast<float>();
-    b->cos_incidence = std::fabs(hit.normal.dot(dir_world.cast<float>()));
-    b->material = scene_.material_id(hit.surface_id);
-    const float albedo =
-        texture_.FootprintAlbedo(hit.surface_id, hit_world, TextureAxis(hit.normal));
-    b->reflectivity = ApparentReflectivity(Materials()[b->material], albedo, b->cos_incidence);
-    // Intensity() of the path without error sources, from the same albedo.
-    b->albedo_intensity = std::fmin(255.f, 255.f * albedo * (0.2f + 0.8f * b->cos_incidence));
-  };
-  const bool spinning = lidar_.type == LidarType::kSpinning;
-  int columns = 0, rings = 0;
-  if (spinning) {
-    THROW_CHECK_GT(lidar_.rings, 0);
-    columns = options_.azimuth_steps;
-    rings = lidar_.rings;
-    beams.resize(static_cast<size_t>(columns) * rings);
+    const int rings = lidar_.rings;
     std::vector<double> cos_el(rings), sin_el(rings);
     for (int r = 0; r < rings; ++r) {
       cos_el[r] = std::cos(RingElevation(r));
@@ -275,16 +144,16 @@ PointCloud LidarSimulator::SimulateScanWithErrors(TimestampNs scan_start_ns,
           for (int j = 0; j < 3; ++j) dirs[k][j] = static_cast<float>(dirs_world[k][j]);
         }
         RayHit hits[16];
-        scene_.Intersect16At(t_ns, valid, origin, dirs, max_cast, /*coherent=*/false, hits);
+        scene_.Intersect16At(t_ns, valid, origin, dirs, spinning_max_cast, /*coherent=*/false,
+                             hits);
         for (int k = 0; k < 16 && r0 + k < rings; ++k) {
-          record(hits[k], world_from_lidar, dirs_lidar[k], dirs_world[k], t_s, r0 + k,
-                 &beams[static_cast<size_t>(c) * rings + r0 + k]);
+          visit(hits[k], world_from_lidar, dirs_lidar[k], dirs_world[k], t_s, r0 + k,
+                static_cast<size_t>(c) * rings + r0 + k);
         }
       }
     }
   } else {
     const int n = static_cast<int>(std::floor(options_.livox_rate * period_s));
-    beams.resize(n);
     const double half_fov = 0.5 * options_.livox_fov_deg * M_PI / 180.0;
     const double scan_start_s = NsToSeconds(scan_start_ns - trajectory_.start_ns());
     for (int i = 0; i < n; ++i) {
@@ -293,11 +162,106 @@ PointCloud LidarSimulator::SimulateScanWithErrors(TimestampNs scan_start_ns,
       const TimestampNs t_ns = capture_start_ns + SecondsToNs(t_s);
       const SE3 world_from_lidar = trajectory_.Pose(t_ns) * lidar_.imu_from_lidar;
       const Vec3 dir_world = world_from_lidar.rotation() * dir_lidar;
-      const RayHit hit =
-          scene_.IntersectAt(t_ns, world_from_lidar.translation(), dir_world, 0.0, max_cast);
-      record(hit, world_from_lidar, dir_lidar, dir_world, t_s, 0, &beams[i]);
+      const RayHit hit = scene_.IntersectAt(t_ns, world_from_lidar.translation(), dir_world, 0.0,
+                                            solid_state_max_cast);
+      visit(hit, world_from_lidar, dir_lidar, dir_world, t_s, 0, static_cast<size_t>(i));
     }
   }
+}
+
+PointCloud LidarSimulator::SimulateScan(TimestampNs scan_start_ns, int64_t scan_index) const {
+  if (options_.errors_enabled) return SimulateScanWithErrors(scan_start_ns, scan_index);
+  std::mt19937_64 rng(options_.seed * 0x9E3779B97F4A7C15ULL +
+                      static_cast<uint64_t>(scan_index) * 0xBF58476D1CE4E5B9ULL + 5);
+  std::normal_distribution<double> normal(0.0, options_.range_sigma * options_.noise_scale);
+  const bool noisy = options_.noise_scale > 0;
+  struct Raw {
+    LidarPoint point;
+    double t_s;  // since scan_start_ns
+  };
+  std::vector<Raw> raw;
+  const float min_range = static_cast<float>(lidar_.min_range);
+  const float max_range = static_cast<float>(lidar_.max_range);
+  auto add_point = [&](const RayHit& hit, const SE3& world_from_lidar, const Vec3& dir_lidar,
+                       const Vec3& dir_world, double t_s, int ring) {
+    if (!hit.hit) return;
+    double range = hit.distance;
+    const Eigen::Vector3f hit_world =
+        (world_from_lidar.translation() + range * dir_world).cast<float>();
+    if (noisy) range += normal(rng);
+    if (range < min_range || range > max_range) return;
+    Raw r;
+    const Vec3 p = dir_lidar * range;
+    r.point.x = static_cast<float>(p.x());
+    r.point.y = static_cast<float>(p.y());
+    r.point.z = static_cast<float>(p.z());
+    r.point.intensity = Intensity(texture_, hit, hit_world, dir_world.cast<float>());
+    r.point.ring = static_cast<uint16_t>(ring);
+    r.t_s = t_s;
+    raw.push_back(r);
+  };
+  raw.reserve(NumBeams());
+  CastBeams(scan_start_ns, max_range + 1.f, lidar_.max_range + 1.0,
+            [&](const RayHit& hit, const SE3& world_from_lidar, const Vec3& dir_lidar,
+                const Vec3& dir_world, double t_s, int ring, size_t /*beam*/) {
+              add_point(hit, world_from_lidar, dir_lidar, dir_world, t_s, ring);
+            });
+  PointCloud cloud;
+  if (raw.empty()) {
+    cloud.stamp_ns = scan_start_ns;
+    return cloud;
+  }
+  const double first_s = raw.front().t_s;
+  cloud.stamp_ns = scan_start_ns + SecondsToNs(first_s);
+  cloud.points.reserve(raw.size());
+  for (Raw& r : raw) {
+    r.point.t = static_cast<float>(r.t_s - first_s);
+    cloud.points.push_back(r.point);
+  }
+  return cloud;
+}
+
+PointCloud LidarSimulator::SimulateScanWithErrors(TimestampNs scan_start_ns,
+                                                  int64_t scan_index) const {
+  const LidarErrorOptions& e = options_.errors;
+  const uint64_t scan_key =
+      Mix64(Mix64(options_.seed * 0x9E3779B97F4A7C15ULL + 0x4c494441ULL) +
+            static_cast<uint64_t>(scan_index) * 0xD6E8FEB86659FD93ULL);
+  auto draw = [&](uint64_t index, Stream stream) {
+    return Mix64(scan_key + Mix64(index * 4 + stream));
+  };
+  const float max_cast = static_cast<float>(lidar_.max_range) + 1.f;
+
+  // ---- pass 1: cast every beam, keep what the error model needs ----
+  std::vector<Beam> beams;
+  auto record = [&](const RayHit& hit, const SE3& world_from_lidar, const Vec3& dir_lidar,
+                    const Vec3& dir_world, double t_s, int ring, Beam* b) {
+    b->direction = dir_lidar.cast<float>();
+    b->t_s = t_s;
+    b->ring = static_cast<uint16_t>(ring);
+    if (!hit.hit) return;
+    const Eigen::Vector3f hit_world =
+        (world_from_lidar.translation() + static_cast<double>(hit.distance) * dir_world)
+            .cast<float>();
+    b->range = hit.distance;
+    b->normal = (world_from_lidar.rotation().conjugate() * hit.normal.cast<double>()).cast<float>();
+    b->cos_incidence = std::fabs(hit.normal.dot(dir_world.cast<float>()));
+    b->material = scene_.material_id(hit.surface_id);
+    const float albedo =
+        texture_.FootprintAlbedo(hit.surface_id, hit_world, TextureAxis(hit.normal));
+    b->reflectivity = ApparentReflectivity(Materials()[b->material], albedo, b->cos_incidence);
+    // Intensity() of the path without error sources, from the same albedo.
+    b->albedo_intensity = std::fmin(255.f, 255.f * albedo * (0.2f + 0.8f * b->cos_incidence));
+  };
+  const bool spinning = lidar_.type == LidarType::kSpinning;
+  const int columns = spinning ? options_.azimuth_steps : 0;
+  const int rings = spinning ? lidar_.rings : 0;
+  beams.resize(NumBeams());
+  CastBeams(scan_start_ns, max_cast, max_cast,
+            [&](const RayHit& hit, const SE3& world_from_lidar, const Vec3& dir_lidar,
+                const Vec3& dir_world, double t_s, int ring, size_t beam) {
+              record(hit, world_from_lidar, dir_lidar, dir_world, t_s, ring, &beams[beam]);
+            });
 
   // ---- pass 2: mixed pixels, dropouts, range limits, noise, intensity ----
   const double divergence = 1e-3 * e.beam_divergence_mrad;

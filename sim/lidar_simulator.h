@@ -121,6 +121,21 @@ class LidarSimulator {
  private:
   PointCloud SimulateScanWithErrors(TimestampNs scan_start_ns, int64_t scan_index) const;
 
+  // Number of beams CastBeams() visits per scan.
+  size_t NumBeams() const;
+
+  // Casts every beam of the scan that starts at `scan_start_ns` at its true
+  // firing time (poses from lidar.time_offset_s on): a spinning LiDAR column
+  // by column, 16 rings per Scene::Intersect16At packet, up to
+  // `spinning_max_cast` m; a solid-state one along its rosette up to
+  // `solid_state_max_cast` m. Calls visit(hit, world_from_lidar, dir_lidar,
+  // dir_world, t_s, ring, beam) once per beam, with t_s the firing time since
+  // scan_start_ns and beam = column * rings + ring (spinning) or the firing
+  // index (solid state), in increasing beam order.
+  template <typename Visit>
+  void CastBeams(TimestampNs scan_start_ns, float spinning_max_cast, double solid_state_max_cast,
+                 Visit&& visit) const;
+
   const Scene& scene_;
   const SplineTrajectory& trajectory_;
   RigLidar lidar_;
