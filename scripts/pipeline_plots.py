@@ -44,6 +44,7 @@ try:
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from mpl_toolkits.axes_grid1 import make_axes_locatable
 except ImportError as e:  # pragma: no cover - depends on the machine
     sys.stderr.write(
         "error: pipeline_plots.py needs numpy and matplotlib (Debian python3-numpy "
@@ -243,7 +244,9 @@ def plot_model(output_dir, model_path, centres, xyz, track_lengths):
         vmax = max(3, np.percentile(track_lengths, 99))
         scatter = axis.scatter(xyz[order, 0], xyz[order, 1], c=track_lengths[order], s=3,
                                cmap="viridis", vmin=2, vmax=vmax, linewidths=0)
-        bar = figure.colorbar(scatter, ax=axis, shrink=0.8)
+        # A colour bar axis as tall as the (equal-aspect) plot.
+        bar_axis = make_axes_locatable(axis).append_axes("right", size="4%", pad=0.1)
+        bar = figure.colorbar(scatter, cax=bar_axis)
         bar.set_label("track length (images per point)")
     if len(centres):
         axis.scatter(centres[:, 0], centres[:, 1], s=10, color="red", marker="^",
