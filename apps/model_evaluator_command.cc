@@ -2,18 +2,21 @@
 // reference cameras (colmap_ext/sfm_evaluation.h).
 //
 //   lisfm model_evaluator --model_path M --reference_path R
-//       [--reference_format auto|colmap|strecha|bundler] [--alignment sim3|se3|none]
+//       [--reference_format auto|colmap|strecha|bundler|sequence] [--alignment sim3|se3|none]
 //       [--bundler_list_path list.txt] [--output_path metrics.json]
 //
 // M is a model folder, or a mapper output folder holding numbered models
 // (0, 1, ...): then the model with the most images is scored. Prints a table
-// on stdout; --output_path writes the metrics as JSON (atomically).
+// on stdout; --output_path writes the metrics as JSON (atomically). With a
+// simulated sequence folder as the reference (colmap_ext/sfm/sequence_reference.h)
+// and a model with a rig, also the refined rig extrinsics against the truth.
 #include <fmt/format.h>
 
 #include <chrono>
 #include <cmath>
 #include <filesystem>
 #include <iostream>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -21,6 +24,7 @@
 #include "apps/option_sections.h"
 #include "apps/summary_json.h"
 #include "colmap_ext/io/model_io.h"
+#include "colmap_ext/sfm/sequence_reference.h"
 #include "colmap_ext/sfm/sfm_evaluation.h"
 #include "core/errors.h"
 #include "core/file_utils.h"
@@ -82,10 +86,11 @@ int RunModelEvaluator(int argc, char** argv) {
   options.AddRequiredString("model_path", &model_path,
                             "estimated COLMAP model folder (or mapper output with 0, 1, ...)");
   options.AddRequiredString("reference_path", &reference_path,
-                            "reference: COLMAP model folder, Strecha gt_dense_cameras folder or "
-                            "Bundler .out file");
+                            "reference: COLMAP model folder, Strecha gt_dense_cameras folder, "
+                            "Bundler .out file or simulated sequence folder (true camera poses)");
   options.AddChoice("reference_format", &reference_format_name,
-                    {"auto", "colmap", "strecha", "bundler"}, "format of --reference_path");
+                    {"auto", "colmap", "strecha", "bundler", "sequence"},
+                    "format of --reference_path");
   AddSfmEvaluationOptions(&options, &eval_options);
   options.AddString("bundler_list_path", &bundler_list_path,
                     "Bundler image list (one name per camera); default list.txt or images/ "
@@ -104,8 +109,14 @@ int RunModelEvaluator(int argc, char** argv) {
   const std::string model_folder = ResolveModelFolder(model_path);
   const colmap::Reconstruction model = colmap::ReadModel(model_folder);
   const std::vector<colmap::NamedPose> estimate = colmap::PosesFromReconstruction(model);
-  const std::vector<colmap::NamedPose> reference =
-      colmap::ReadReferencePoses(reference_path, reference_format, bundler_list_path);
+  std::vector<colmap::NamedPose> reference;
+  std::optional<colmap::SequenceReference> sequence;
+  if (reference_format == colmap::ReferenceFormat::kSequence) {
+    sequence = colmap::ReadSequenceReference(reference_path);
+    reference = sequence->poses;
+  } else {
+    reference = colmap::ReadReferencePoses(reference_path, reference_format, bundler_list_path);
+  }
   colmap::SfmEvaluation ev;
   try {
     ev = colmap::EvaluatePoses(estimate, reference, eval_options);
@@ -129,7 +140,8 @@ int RunModelEvaluator(int argc, char** argv) {
                        Cell(s.median, decimals), Cell(s.max, decimals), s.count);
   };
   std::cout << row("rotation error [deg]", ev.rotation_error_deg, 4)
-            << row("position error [reference units]", ev.position_error, 5)
+            << row(sequence ? "position error [m]" : "position error [reference units]",
+                   ev.position_error, 5)
             << row("relative rotation error [deg]", ev.relative_rotation_error_deg, 4)
             << row("relative translation angle [deg]", ev.relative_translation_error_deg, 4);
   std::string auc_line = "relative pose AUC over " + std::to_string(ev.num_pairs) + " pairs:";
@@ -138,12 +150,38 @@ int RunModelEvaluator(int argc, char** argv) {
   }
   std::cout << "\n" << auc_line << "\n";
 
+  std::vector<colmap::RigCameraEvaluation> rig_evaluation;
+  if (sequence) {
+    rig_evaluation = colmap::EvaluateModelRig(model, sequence->believed_rig, sequence->truth_rig,
+                                              ev.reference_from_estimate.scale, model_folder);
+  }
+  if (!rig_evaluation.empty()) {
+    std::cout << fmt::format(
+        "\nrig extrinsics cam_from_{} against {} (refined = the model's rig, calibration = "
+        "rig.yaml)\n{:<10}{:>16}{:>16}{:>20}{:>20}\n",
+        sequence->believed_rig.cameras[rig_evaluation.front().camera_index].name,
+        sequence->has_truth_rig_file ? "truth/rig.yaml" : "rig.yaml (no truth/rig.yaml)",
+        "camera", "refined [deg]", "refined [mm]", "calibration [deg]", "calibration [mm]");
+    for (const colmap::RigCameraEvaluation& c : rig_evaluation) {
+      const std::string name = sequence->believed_rig.cameras[c.camera_index].name;
+      if (c.is_reference) {
+        std::cout << fmt::format("{:<10}{:>72}\n", name, "(reference camera)");
+        continue;
+      }
+      std::cout << fmt::format("{:<10}{:>16.4f}{:>16.3f}{:>20.4f}{:>20.3f}\n", name,
+                               c.rotation_error_deg, c.translation_error_m * 1000,
+                               c.believed_rotation_error_deg, c.believed_translation_error_m * 1000);
+    }
+  }
+
   if (!output_path.empty()) {
     WriteFileAtomically(output_path,
                         SfmEvaluationToJson(
-                            ev, {{"model_path", model_folder},
-                                 {"reference_path", reference_path},
-                                 {"reference_format", colmap::ReferenceFormatName(reference_format)}}));
+                            ev,
+                            {{"model_path", model_folder},
+                             {"reference_path", reference_path},
+                             {"reference_format", colmap::ReferenceFormatName(reference_format)}},
+                            rig_evaluation));
   }
   const double seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();

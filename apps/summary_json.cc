@@ -168,7 +168,8 @@ nlohmann::json GlobalMapperSummaryToJson(const colmap::GlobalMapperSummary& s) {
 
 std::string SfmEvaluationToJson(
     const colmap::SfmEvaluation& ev,
-    const std::vector<std::pair<std::string, std::string>>& extra) {
+    const std::vector<std::pair<std::string, std::string>>& extra,
+    const std::vector<colmap::RigCameraEvaluation>& rig) {
   ordered_json j;
   for (const auto& [key, value] : extra) j[key] = value;
   j["num_reference_images"] = ev.num_reference_images;
@@ -204,6 +205,20 @@ std::string SfmEvaluationToJson(
                       {"position_error", Number(image.position_error)}});
   }
   j["images"] = images;
+  if (!rig.empty()) {
+    ordered_json cameras = ordered_json::array();
+    for (const colmap::RigCameraEvaluation& c : rig) {
+      cameras.push_back({{"camera_id", c.camera_id},
+                         {"camera_index", c.camera_index},
+                         {"is_reference", c.is_reference},
+                         {"rotation_error_deg", Number(c.rotation_error_deg)},
+                         {"translation_error_mm", Number(c.translation_error_m * 1000)},
+                         {"believed_rotation_error_deg", Number(c.believed_rotation_error_deg)},
+                         {"believed_translation_error_mm",
+                          Number(c.believed_translation_error_m * 1000)}});
+    }
+    j["rig"] = cameras;
+  }
   return j.dump(2) + "\n";
 }
 

@@ -11,16 +11,12 @@
 #include <string>
 #include <vector>
 
+#include "core/io/sensor_index_io.h"  // SensorFile, ReadSensorIndex
 #include "core/point_cloud.h"
 #include "core/rig.h"
 #include "core/sensor_data.h"
 
 namespace lisfm {
-
-struct SensorFile {
-  TimestampNs t_ns = 0;
-  std::string path;  // absolute or relative to the working directory
-};
 
 struct Sequence {
   std::string root;
@@ -37,7 +33,5 @@ Sequence ReadSequence(const std::string& root);
 
 // Reads imu0/data.csv style files.
 std::vector<ImuSample> ReadImuCsv(const std::string& path);
-// Reads a `t_ns, filename` index; files are resolved against `data_dir`.
-std::vector<SensorFile> ReadSensorIndex(const std::string& path, const std::string& data_dir);
 
 }  // namespace lisfm

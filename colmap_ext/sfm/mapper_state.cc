@@ -71,9 +71,6 @@ size_t MapperState::NumRegisteredImages() const {
   return n;
 }
 
-namespace {
-
-// `camK/data/<ns>.<ext>` at the end of an image name (DESIGN.md "Formats").
 bool ParseRigImageName(const std::string& name, int* camera_index, int64_t* stamp_ns) {
   static const std::regex kPattern(R"((^|.*/)cam([0-9]+)/data/([0-9]+)\.[A-Za-z0-9]+$)");
   std::smatch match;
@@ -86,6 +83,8 @@ bool ParseRigImageName(const std::string& name, int* camera_index, int64_t* stam
   }
   return true;
 }
+
+namespace {
 
 void CheckCamera(const Database& database, const Camera& camera) {
   const std::string where = "cameras record camera_id=" + std::to_string(camera.camera_id);

@@ -137,6 +137,11 @@ struct LoadMapperStateOptions {
   bool Check() const;
 };
 
+// Parses `camK/data/<ns>.<ext>` at the end of an image name (DESIGN.md
+// "Formats"): the rig camera index K and the stamp <ns>. False when the name
+// does not follow it.
+bool ParseRigImageName(const std::string& name, int* camera_index, int64_t* stamp_ns);
+
 // Reads cameras, images, keypoints (normalised via the camera models) and
 // priors. `rig` (may be null) groups images into frames as described above.
 // Does not read matches (view_graph.h does). Throws InputError for cameras

@@ -10,6 +10,7 @@
 #include <unordered_map>
 
 #include "colmap_ext/io/model_io.h"
+#include "colmap_ext/sfm/sequence_reference.h"
 #include "core/errors.h"
 #include "core/file_utils.h"
 #include "core/logging.h"
@@ -214,13 +215,16 @@ std::string ReferenceFormatName(ReferenceFormat format) {
       return "strecha";
     case ReferenceFormat::kBundler:
       return "bundler";
+    case ReferenceFormat::kSequence:
+      return "sequence";
   }
   return "";
 }
 
 bool ParseReferenceFormat(const std::string& name, ReferenceFormat* format) {
   for (ReferenceFormat f : {ReferenceFormat::kAuto, ReferenceFormat::kColmap,
-                            ReferenceFormat::kStrecha, ReferenceFormat::kBundler}) {
+                            ReferenceFormat::kStrecha, ReferenceFormat::kBundler,
+                            ReferenceFormat::kSequence}) {
     if (name == ReferenceFormatName(f)) {
       *format = f;
       return true;
@@ -254,13 +258,14 @@ std::string StrechaFolder(const std::string& folder) {
 
 ReferenceFormat DetectReferenceFormat(const std::string& path) {
   if (DirExists(path)) {
+    if (IsSequenceFolderWithGroundTruth(path)) return ReferenceFormat::kSequence;
     if (HasModel(path, ModelFormat::kBinary) || HasModel(path, ModelFormat::kText)) {
       return ReferenceFormat::kColmap;
     }
     if (!StrechaFolder(path).empty()) return ReferenceFormat::kStrecha;
     throw InputError(path, "",
-                     "expected a COLMAP model folder or a folder of Strecha *.camera files, "
-                     "found neither");
+                     "expected a COLMAP model folder, a folder of Strecha *.camera files or a "
+                     "simulated sequence folder (rig.yaml, groundtruth.txt, truth/), found none");
   }
   if (FileExists(path)) {
     if (Lower(fs::path(path).extension().string()) == ".out") return ReferenceFormat::kBundler;
@@ -464,6 +469,8 @@ std::vector<NamedPose> ReadReferencePoses(const std::string& path,
       return ReadStrechaCameras(path);
     case ReferenceFormat::kBundler:
       return ReadBundlerPoses(path, bundler_list_path);
+    case ReferenceFormat::kSequence:
+      return ReadSequenceReference(path).poses;
     case ReferenceFormat::kAuto:
       break;
   }

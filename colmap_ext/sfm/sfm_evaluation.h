@@ -2,7 +2,8 @@
 // scripts/compare_colmap.sh).
 //
 // References: a COLMAP model folder (model_io.h), the Strecha et al. 2008
-// `gt_dense_cameras/*.camera` folder, or a Bundler v0.3 `.out` file.
+// `gt_dense_cameras/*.camera` folder, a Bundler v0.3 `.out` file, or a
+// simulated sequence folder (the true camera poses, sequence_reference.h).
 //
 // Conventions: every pose is cam_from_world in COLMAP's camera frame (x right,
 // y down, z forward); camera centres C = -R^T t. Reference and estimate each
@@ -52,15 +53,16 @@ struct NamedPose {
   Camera camera;        // intrinsics when the source has them (model_id kInvalid otherwise)
 };
 
-enum class ReferenceFormat { kAuto, kColmap, kStrecha, kBundler };
+enum class ReferenceFormat { kAuto, kColmap, kStrecha, kBundler, kSequence };
 
-// "auto", "colmap", "strecha", "bundler".
+// "auto", "colmap", "strecha", "bundler", "sequence".
 std::string ReferenceFormatName(ReferenceFormat format);
 // False for an unknown name.
 bool ParseReferenceFormat(const std::string& name, ReferenceFormat* format);
-// A folder with a COLMAP model -> kColmap; a folder with *.camera files (or a
-// `gt_dense_cameras` subfolder holding them) -> kStrecha; a `.out` file ->
-// kBundler. Throws InputError naming `path` when none applies.
+// A folder with rig.yaml and groundtruth.txt (a simulated sequence folder,
+// sequence_reference.h) -> kSequence; a folder with a COLMAP model -> kColmap;
+// a folder with *.camera files (or a `gt_dense_cameras` subfolder holding
+// them) -> kStrecha; a `.out` file -> kBundler. Throws InputError naming `path` when none applies.
 ReferenceFormat DetectReferenceFormat(const std::string& path);
 
 // The registered images of a COLMAP model (file order).

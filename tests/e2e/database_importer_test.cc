@@ -17,11 +17,11 @@
 #include "colmap_ext/io/model_io.h"
 #include "colmap_ext/sfm/lidar_constraints.h"
 #include "colmap_ext/sfm/mapper_state.h"
+#include "colmap_ext/sfm/sequence_reference.h"
 #include "colmap_ext/sfm/sfm_evaluation.h"
 #include "core/file_utils.h"
 #include "core/io/lidar_constraints_io.h"
 #include "core/io/rig_io.h"
-#include "core/io/trajectory_io.h"
 #include "importers/testing/pose_slam_standin.h"
 #include "tests/common/test_utils.h"
 
@@ -180,28 +180,22 @@ TEST_F(DatabaseImporterTest, StockColmapAndGlobalMapperOnTheDatabase) {
   EXPECT_EQ(model.NumImages(), before.size()) << out;
 
   // Ground truth: groundtruth.txt at the true capture time with the true
-  // extrinsics; scored like `lisfm model_evaluator --alignment se3` (centres
-  // aligned by Umeyama, rotations by their geodesic mean: a 14 s walk is close
-  // to a line, whose roll the centres alone do not fix).
-  const Rig truth = ReadRigYaml(Seq() + "/truth/rig.yaml");
-  const Trajectory gt = ReadTum(Seq() + "/groundtruth.txt");
-  std::vector<colmap::NamedPose> estimate, reference;
+  // extrinsics (colmap_ext/sfm/sequence_reference.h); scored like `lisfm
+  // model_evaluator --alignment se3` (centres aligned by Umeyama, rotations by
+  // their geodesic mean: a 14 s walk is close to a line, whose roll the
+  // centres alone do not fix).
+  const colmap::SequenceReference truth = colmap::ReadSequenceReference(Seq());
+  EXPECT_TRUE(truth.has_truth_rig_file);
+  const std::vector<colmap::NamedPose> estimate = colmap::PosesFromReconstruction(model);
   double max_from_prior = 0;
   for (const colmap::Image& image : model.Images()) {
-    const int k = image.name[3] - '0';
-    const TimestampNs stamp = std::stoll(image.name.substr(image.name.rfind('/') + 1));
-    // Poses beyond the ground truth's ends are those at its ends (docs/FORMATS.md).
-    const TimestampNs t_true = std::clamp(
-        stamp + SecondsToNs(truth.cameras[k].timeshift_cam_imu_s), gt.start_ns(), gt.end_ns());
-    const SE3 world_from_cam = *gt.Interpolate(t_true) * truth.cameras[k].cam_from_imu.Inverse();
-    estimate.push_back({image.name, image.CamFromWorld(), {}});
-    reference.push_back({image.name, world_from_cam.Inverse(), {}});
     max_from_prior = std::max(
         max_from_prior, (image.ProjectionCenter() - before.at(image.name).prior_position).norm());
   }
   colmap::SfmEvaluationOptions evaluation;
   evaluation.alignment = AlignmentType::kSE3;
-  const colmap::SfmEvaluation e = colmap::EvaluatePoses(estimate, reference, evaluation);
+  const colmap::SfmEvaluation e = colmap::EvaluatePoses(estimate, truth.poses, evaluation);
+  EXPECT_EQ(e.num_registered, before.size());
   const double max_pos = e.position_error.max, max_rot_deg = e.rotation_error_deg.max;
   std::cout << "database_importer -> colmap -> global_mapper: " << model.NumImages()
             << " images, max error " << max_pos * 1000 << " mm, " << max_rot_deg
