@@ -429,6 +429,7 @@ class Pipeline {
   bool bag_input_ = false;
   std::map<std::string, OptionList> config_;
   std::vector<StageState> stages_;
+  std::vector<std::string> notes_;  // warnings of the running stage, printed after its line
 };
 
 void Pipeline::Exec(StageState* stage, const std::vector<std::string>& args) {
@@ -575,7 +576,7 @@ void Pipeline::RunStage(StageState* stage) {
         const std::string log = JoinPaths(dir, trajectory + "_hilti.log");
         if (RunChild(a, log) != 0) {
           status[trajectory + "_hilti"] = "unavailable: see " + log;
-          LogWarning("pipeline: no HILTI score for {} (see {})", trajectory, log);
+          notes_.push_back(fmt::format("no HILTI score for {} (see {})", trajectory, log));
         }
       }
     }
@@ -610,7 +611,8 @@ void Pipeline::RunStage(StageState* stage) {
           if (line.rfind("error:", 0) == 0) last = line;
         }
         status[model] = "unavailable: " + (last.empty() ? "model_evaluator failed" : last);
-        LogWarning("pipeline: camera errors of {} unavailable ({}; log {})", model, last, log);
+        notes_.push_back(
+            fmt::format("camera errors of {} unavailable ({}; log {})", model, last, log));
       }
     }
     const std::string truth_rig = JoinPaths(sequence_, "truth/rig.yaml");
@@ -638,7 +640,8 @@ void Pipeline::CheckColmap(const std::string& first_stock_stage) {
         first_stock_stage, colmap_path,
         colmap_path.find('/') == std::string::npos ? " on PATH" : ""));
   }
-  const std::string log = JoinPaths(output_path, "colmap_check.log");
+  const std::string log =
+      (fs::temp_directory_path() / fmt::format("lisfm_colmap_check_{}.log", getpid())).string();
   fs::remove(log);
   const int code = RunChild({colmap_, "help"}, log);
   const std::string text = ReadFile(log);
@@ -646,12 +649,14 @@ void Pipeline::CheckColmap(const std::string& first_stock_stage) {
   if (at == std::string::npos) {
     throw InputError(fmt::format(
         "stage {} needs stock COLMAP, but `{} help` (exit code {}) printed no COLMAP version:\n{}",
-        first_stock_stage, colmap_, code, Tail(log, 20)));
+        first_stock_stage, colmap_, code, [&] {
+          const std::string tail = Tail(log, 20);
+          fs::remove(log);
+          return tail;
+        }()));
   }
   colmap_version_ = text.substr(at, text.find_first_of(" \n", at + 7) - at);
   fs::remove(log);
-  const json colmap = {{"path", colmap_}, {"version", colmap_version_}};
-  WriteFileAtomically(JoinPaths(output_path, "colmap.json"), colmap.dump(2) + "\n");
   LogInfo("pipeline: {} is {}", colmap_, colmap_version_);
 }
 
@@ -659,8 +664,8 @@ void Pipeline::RunPlots() {
   const std::string script = JoinPaths(scripts_path, "pipeline_plots.py");
   const std::string plots = JoinPaths(output_path, "plots");
   if (!FileExists(script) || access(python_path.c_str(), X_OK) != 0) {
-    LogWarning("pipeline: no plots ({} or {} missing); the report is written without them",
-               script, python_path);
+    notes_.push_back(fmt::format("no plots ({} or {} missing); the report is written without them",
+                                 script, python_path));
     return;
   }
   std::vector<std::string> a = {python_path, script, "--output_dir", plots};
@@ -674,8 +679,9 @@ void Pipeline::RunPlots() {
   if (DirExists(model)) a.insert(a.end(), {"--model_path", model});
   const std::string log = JoinPaths(Dir("report"), "plots.log");
   if (RunChild(a, log) != 0) {
-    LogWarning("pipeline: the plot script failed (matplotlib missing?); report without plots. "
-               "Log: {}\n{}", log, Tail(log, 5));
+    notes_.push_back(fmt::format(
+        "the plot script failed (matplotlib missing?); report without plots. Log: {}\n{}", log,
+        Tail(log, 5)));
   }
 }
 
@@ -1011,21 +1017,6 @@ int Pipeline::Run(int argc, char** argv) {
                                  start_stage));
   }
 
-  // The output folder: new, empty, or an earlier pipeline output.
-  const std::string marker = JoinPaths(output_path, ".lisfm_pipeline");
-  if (FileExists(output_path)) {
-    throw UsageError("--output_path " + output_path + " is a file, not a folder");
-  }
-  if (DirExists(output_path) && !fs::is_empty(output_path) && !FileExists(marker)) {
-    throw UsageError("--output_path " + output_path +
-                     " is a non-empty folder that lisfm pipeline did not write; choose another");
-  }
-  CreateDirs(output_path);
-  output_path = fs::absolute(output_path).lexically_normal().string();
-  WriteFileAtomically(JoinPaths(output_path, ".lisfm_pipeline"), "lisfm pipeline output\n");
-  if (bag_input_) sequence_ = Dir("bag_importer");
-  self_ = fs::read_symlink("/proc/self/exe").string();
-
   // Which stages run: from start_index (everything from there is rerun) or
   // from the first stage that is not done; up to end_index.
   std::vector<size_t> to_run;
@@ -1045,18 +1036,37 @@ int Pipeline::Run(int argc, char** argv) {
     rerun = true;  // every stage after one that runs runs too
     to_run.push_back(k);
   }
-  // Invalidate the stages that will run and everything after them.
-  if (!to_run.empty()) {
-    for (size_t k = to_run.front(); k < stages_.size(); ++k) {
-      fs::remove(Done(stages_[k].name));
-    }
-  }
   const std::set<std::string> stock = {"feature_extractor", "matches_importer", "stock_mapper",
                                        "exhaustive_mapper"};
   for (size_t k : to_run) {
     if (stock.count(stages_[k].name)) {
       CheckColmap(stages_[k].name);
       break;
+    }
+  }
+  // The output folder: new, empty, or an earlier pipeline output.
+  const std::string marker = JoinPaths(output_path, ".lisfm_pipeline");
+  if (FileExists(output_path)) {
+    throw UsageError("--output_path " + output_path + " is a file, not a folder");
+  }
+  if (DirExists(output_path) && !fs::is_empty(output_path) && !FileExists(marker)) {
+    throw UsageError("--output_path " + output_path +
+                     " is a non-empty folder that lisfm pipeline did not write; choose another");
+  }
+  CreateDirs(output_path);
+  output_path = fs::absolute(output_path).lexically_normal().string();
+  WriteFileAtomically(JoinPaths(output_path, ".lisfm_pipeline"), "lisfm pipeline output\n");
+  if (bag_input_) sequence_ = Dir("bag_importer");
+  self_ = fs::read_symlink("/proc/self/exe").string();
+
+  if (!colmap_.empty()) {
+    const json colmap = {{"path", colmap_}, {"version", colmap_version_}};
+    WriteFileAtomically(JoinPaths(output_path, "colmap.json"), colmap.dump(2) + "\n");
+  }
+  // Invalidate the stages that will run and everything after them.
+  if (!to_run.empty()) {
+    for (size_t k = to_run.front(); k < stages_.size(); ++k) {
+      fs::remove(Done(stages_[k].name));
     }
   }
   WriteFileAtomically(JoinPaths(output_path, "pipeline_config.yaml"), [&] {
@@ -1103,6 +1113,7 @@ int Pipeline::Run(int argc, char** argv) {
     } catch (const std::exception& e) {
       s.status = "failed";
       std::cout << " failed\n" << std::flush;
+      for (const std::string& note : notes_) LogWarning("pipeline: {}: {}", s.name, note);
       throw;
     }
     s.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
@@ -1117,6 +1128,8 @@ int Pipeline::Run(int argc, char** argv) {
                  {"finished", NowUtc()}};
     WriteFileAtomically(Done(s.name), done.dump(2) + "\n");
     std::cout << fmt::format(" {:.1f} s\n", s.seconds) << std::flush;
+    for (const std::string& note : notes_) LogWarning("pipeline: {}: {}", s.name, note);
+    notes_.clear();
   }
   if (!FileExists(Done("report"))) {
     std::cout << "pipeline: stopped after " << names[end_index] << " (--end_stage); no report\n";
