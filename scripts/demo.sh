@@ -6,7 +6,7 @@
 #
 # Steps:
 #   1. lisfm simulate: a 60 s HILTI-style office recording (IMU, XT-32-like LiDAR, the
-#      HILTI 2022 5-camera rig at 1 Hz) with the simulator's default (realistic) error
+#      HILTI 2022 5-camera rig at 0.5 Hz) with the simulator's default (realistic) error
 #      sources -- calibration, IMU, LiDAR, camera and people -- and exact ground truth;
 #   2. lisfm pipeline --compare_stock 1 (configs/pipeline_sim.yaml): lio -> pose_slam ->
 #      database_importer -> stock colmap feature_extractor + matches_importer on the
@@ -25,8 +25,8 @@ lisfm_build
 mkdir -p "$OUT"
 start=$(date +%s)
 
-echo "== 1/3 simulate a 60 s office recording (5 cameras at 1 Hz, realistic errors) =="
-"$LISFM" simulate --scene office --duration 60 --camera_rate 1 --seed 1 --quiet 1 \
+echo "== 1/3 simulate a 60 s office recording (5 cameras at 0.5 Hz, realistic errors) =="
+"$LISFM" simulate --scene office --duration 60 --camera_rate 0.5 --seed 1 --quiet 1 \
   --output_path "$OUT/sequence" --overwrite 1
 echo "== 2/3 lisfm pipeline: recording -> COLMAP model, side by side with stock COLMAP =="
 rm -rf "$OUT/pipeline"
