@@ -14,18 +14,17 @@
 // OUT/report.json, OUT/report.md and OUT/plots/ summarise the run
 // (docs/FORMATS.md, "lisfm pipeline outputs").
 #include <fcntl.h>
+#include <fmt/format.h>
 #include <spawn.h>
 #include <sys/stat.h>
 #include <sys/wait.h>
 #include <unistd.h>
 #include <yaml-cpp/yaml.h>
 
-#include <fmt/format.h>
-
 #include <algorithm>
+#include <cerrno>
 #include <chrono>
 #include <cmath>
-#include <cerrno>
 #include <cstring>
 #include <ctime>
 #include <deque>
@@ -67,10 +66,17 @@ using json = nlohmann::ordered_json;
 // Every stage in running order. bag_importer runs for bag input only,
 // stock_mapper with --compare_stock 1, exhaustive_mapper with --compare_exhaustive 1.
 const std::vector<std::string>& StageNames() {
-  static const std::vector<std::string> names = {
-      "bag_importer",  "lio",          "pose_slam",         "database_importer",
-      "feature_extractor", "matches_importer", "global_mapper", "stock_mapper",
-      "exhaustive_mapper", "evaluate",     "report"};
+  static const std::vector<std::string> names = {"bag_importer",
+                                                 "lio",
+                                                 "pose_slam",
+                                                 "database_importer",
+                                                 "feature_extractor",
+                                                 "matches_importer",
+                                                 "global_mapper",
+                                                 "stock_mapper",
+                                                 "exhaustive_mapper",
+                                                 "evaluate",
+                                                 "report"};
   return names;
 }
 
@@ -79,20 +85,38 @@ const std::vector<std::string>& StageNames() {
 // `mapper` to both stock `colmap mapper` runs, `exhaustive_matcher` to the
 // stock exhaustive matching of exhaustive_mapper.
 const std::vector<std::string>& ConfigKeys() {
-  static const std::vector<std::string> keys = {
-      "bag_importer",     "lio",           "pose_slam",      "database_importer",
-      "feature_extractor", "matches_importer", "global_mapper", "mapper",
-      "exhaustive_matcher", "evaluate",    "model_evaluator"};
+  static const std::vector<std::string> keys = {"bag_importer",
+                                                "lio",
+                                                "pose_slam",
+                                                "database_importer",
+                                                "feature_extractor",
+                                                "matches_importer",
+                                                "global_mapper",
+                                                "mapper",
+                                                "exhaustive_matcher",
+                                                "evaluate",
+                                                "model_evaluator"};
   return keys;
 }
 
 // Options the pipeline sets itself (paths); a config file may not override them.
 const std::set<std::string>& ReservedOptions() {
-  static const std::set<std::string> names = {
-      "input_path",    "output_path",     "lio_path",       "pose_slam_path",
-      "database_path", "image_path",      "image_list_path", "match_list_path",
-      "match_type",    "lidar_constraints_path", "model_path", "reference_path",
-      "estimate_path", "reference_type",  "overwrite",      "config_path"};
+  static const std::set<std::string> names = {"input_path",
+                                              "output_path",
+                                              "lio_path",
+                                              "pose_slam_path",
+                                              "database_path",
+                                              "image_path",
+                                              "image_list_path",
+                                              "match_list_path",
+                                              "match_type",
+                                              "lidar_constraints_path",
+                                              "model_path",
+                                              "reference_path",
+                                              "estimate_path",
+                                              "reference_type",
+                                              "overwrite",
+                                              "config_path"};
   return names;
 }
 
@@ -143,7 +167,8 @@ std::map<std::string, OptionList> ReadPipelineConfig(const std::string& path) {
       const std::string near = NearestName(key, keys);
       std::string all;
       for (const auto& k : keys) all += (all.empty() ? "" : ", ") + k;
-      throw InputError(path, where,
+      throw InputError(path,
+                       where,
                        "unknown key '" + key + "'" +
                            (near.empty() ? "" : " (did you mean '" + near + "'?)") +
                            "; expected one of " + all);
@@ -160,12 +185,13 @@ std::map<std::string, OptionList> ReadPipelineConfig(const std::string& path) {
       while (!name.empty() && name.front() == '-') name.erase(name.begin());
       if (name.empty()) throw InputError(path, option_where, "empty option name in '" + key + "'");
       if (!option.second.IsScalar()) {
-        throw InputError(path, option_where,
+        throw InputError(path,
+                         option_where,
                          "'" + key + "." + name + "' must be a single value (number or text)");
       }
       if (ReservedOptions().count(name)) {
-        throw InputError(path, option_where,
-                         "'" + key + "." + name + "' is set by lisfm pipeline itself");
+        throw InputError(
+            path, option_where, "'" + key + "." + name + "' is set by lisfm pipeline itself");
       }
       options.Set(name, option.second.as<std::string>());
     }
@@ -199,8 +225,8 @@ int RunChild(const std::vector<std::string>& args, const std::string& log_path) 
   }
   posix_spawn_file_actions_t actions;
   posix_spawn_file_actions_init(&actions);
-  posix_spawn_file_actions_addopen(&actions, 1, log_path.c_str(), O_WRONLY | O_CREAT | O_APPEND,
-                                   0644);
+  posix_spawn_file_actions_addopen(
+      &actions, 1, log_path.c_str(), O_WRONLY | O_CREAT | O_APPEND, 0644);
   posix_spawn_file_actions_adddup2(&actions, 1, 2);
   posix_spawn_file_actions_addopen(&actions, 0, "/dev/null", O_RDONLY, 0);
   std::vector<std::string> env_strings;
@@ -371,14 +397,14 @@ json RigErrors(const std::string& model_path, const Rig& believed, const Rig& tr
     const SE3 true_pose = relative(truth, k);
     const SE3 e = estimate * true_pose.Inverse();
     const SE3 b = relative(believed, k) * true_pose.Inverse();
-    cameras.push_back({{"camera", k},
-                       {"refined_rotation_error_deg", RotationAngleDeg(e.rotation())},
-                       {"refined_translation_error_mm",
-                        (estimate.translation() - true_pose.translation()).norm() * 1000},
-                       {"calibration_rotation_error_deg", RotationAngleDeg(b.rotation())},
-                       {"calibration_translation_error_mm",
-                        (relative(believed, k).translation() - true_pose.translation()).norm() *
-                            1000}});
+    cameras.push_back(
+        {{"camera", k},
+         {"refined_rotation_error_deg", RotationAngleDeg(e.rotation())},
+         {"refined_translation_error_mm",
+          (estimate.translation() - true_pose.translation()).norm() * 1000},
+         {"calibration_rotation_error_deg", RotationAngleDeg(b.rotation())},
+         {"calibration_translation_error_mm",
+          (relative(believed, k).translation() - true_pose.translation()).norm() * 1000}});
   }
   return cameras;
 }
@@ -408,12 +434,8 @@ class Pipeline {
   }
   // Runs one command of `stage`; throws naming the stage, the command and the log's tail.
   void Exec(StageState* stage, const std::vector<std::string>& args);
-  std::vector<std::string> Lisfm(const std::string& command) const {
-    return {self_, command};
-  }
-  std::vector<std::string> Colmap(const std::string& command) const {
-    return {colmap_, command};
-  }
+  std::vector<std::string> Lisfm(const std::string& command) const { return {self_, command}; }
+  std::vector<std::string> Colmap(const std::string& command) const { return {colmap_, command}; }
   void Append(const std::string& key, std::vector<std::string>* args) const {
     if (config_.count(key)) config_.at(key).AppendTo(args);
   }
@@ -436,9 +458,12 @@ void Pipeline::Exec(StageState* stage, const std::vector<std::string>& args) {
   stage->commands.push_back(CommandLine(args));
   const int code = RunChild(args, RunningLog(stage->name));
   if (code != 0) {
-    throw InputError(fmt::format(
-        "stage {} failed (exit code {}): {}\nlast lines of {}:\n{}", stage->name, code,
-        CommandLine(args), RunningLog(stage->name), Tail(RunningLog(stage->name), 20)));
+    throw InputError(fmt::format("stage {} failed (exit code {}): {}\nlast lines of {}:\n{}",
+                                 stage->name,
+                                 code,
+                                 CommandLine(args),
+                                 RunningLog(stage->name),
+                                 Tail(RunningLog(stage->name), 20)));
   }
 }
 
@@ -466,22 +491,33 @@ void Pipeline::RunStage(StageState* stage) {
     Exec(stage, a);
   } else if (name == "pose_slam") {
     std::vector<std::string> a = Lisfm("pose_slam");
-    a.insert(a.end(),
-             {"--input_path", sequence_, "--lio_path", Dir("lio"), "--output_path", dir});
+    a.insert(a.end(), {"--input_path", sequence_, "--lio_path", Dir("lio"), "--output_path", dir});
     Append(name, &a);
     Exec(stage, a);
   } else if (name == "database_importer") {
     std::vector<std::string> a = Lisfm("database_importer");
-    a.insert(a.end(), {"--input_path", sequence_, "--pose_slam_path", Dir("pose_slam"),
-                       "--lio_path", Dir("lio"), "--output_path", dir});
+    a.insert(a.end(),
+             {"--input_path",
+              sequence_,
+              "--pose_slam_path",
+              Dir("pose_slam"),
+              "--lio_path",
+              Dir("lio"),
+              "--output_path",
+              dir});
     Append(name, &a);
     Exec(stage, a);
   } else if (name == "feature_extractor") {
     CreateDirs(dir);
     const std::string db = CopyDatabase(JoinPaths(importer, "database.db"), name);
     std::vector<std::string> a = Colmap("feature_extractor");
-    a.insert(a.end(), {"--database_path", db, "--image_path", sequence_, "--image_list_path",
-                       JoinPaths(importer, "image_list.txt")});
+    a.insert(a.end(),
+             {"--database_path",
+              db,
+              "--image_path",
+              sequence_,
+              "--image_list_path",
+              JoinPaths(importer, "image_list.txt")});
     OptionList options;
     options.Set("SiftExtraction.use_gpu", "0");
     if (config_.count(name)) {
@@ -493,8 +529,13 @@ void Pipeline::RunStage(StageState* stage) {
     CreateDirs(dir);
     const std::string db = CopyDatabase(JoinPaths(Dir("feature_extractor"), "database.db"), name);
     std::vector<std::string> a = Colmap("matches_importer");
-    a.insert(a.end(), {"--database_path", db, "--match_list_path",
-                       JoinPaths(importer, "pairs.txt"), "--match_type", "pairs"});
+    a.insert(a.end(),
+             {"--database_path",
+              db,
+              "--match_list_path",
+              JoinPaths(importer, "pairs.txt"),
+              "--match_type",
+              "pairs"});
     OptionList options;
     options.Set("SiftMatching.use_gpu", "0");
     if (config_.count(name)) {
@@ -504,10 +545,17 @@ void Pipeline::RunStage(StageState* stage) {
     Exec(stage, a);
   } else if (name == "global_mapper") {
     std::vector<std::string> a = Lisfm("global_mapper");
-    a.insert(a.end(), {"--database_path", JoinPaths(Dir("matches_importer"), "database.db"),
-                       "--image_path", sequence_, "--output_path", dir, "--rig_path",
-                       JoinPaths(importer, "rig.yaml"), "--lidar_constraints_path",
-                       JoinPaths(importer, "constraints.txt")});
+    a.insert(a.end(),
+             {"--database_path",
+              JoinPaths(Dir("matches_importer"), "database.db"),
+              "--image_path",
+              sequence_,
+              "--output_path",
+              dir,
+              "--rig_path",
+              JoinPaths(importer, "rig.yaml"),
+              "--lidar_constraints_path",
+              JoinPaths(importer, "constraints.txt")});
     OptionList options;
     options.Set("BundleAdjustment.refine_cam_from_rig", "1");
     if (config_.count(name)) {
@@ -518,8 +566,8 @@ void Pipeline::RunStage(StageState* stage) {
     // The final model: the largest component, copied to OUT/sparse/0.
     const std::string largest = LargestModel(dir);
     if (largest.empty()) {
-      throw InputError(fmt::format("stage global_mapper: no model under {} (see {})", dir,
-                                   RunningLog(name)));
+      throw InputError(
+          fmt::format("stage global_mapper: no model under {} (see {})", dir, RunningLog(name)));
     }
     const std::string sparse = JoinPaths(output_path, "sparse");
     fs::remove_all(sparse);
@@ -543,12 +591,18 @@ void Pipeline::RunStage(StageState* stage) {
       Exec(stage, m);
       WriteFileAtomically(
           JoinPaths(dir, "matching_seconds.txt"),
-          fmt::format("{:.3f}\n", std::chrono::duration<double>(
-                                      std::chrono::steady_clock::now() - start).count()));
+          fmt::format(
+              "{:.3f}\n",
+              std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count()));
     }
     std::vector<std::string> a = Colmap("mapper");
-    a.insert(a.end(), {"--database_path", db, "--image_path", sequence_, "--output_path",
-                       JoinPaths(dir, "sparse")});
+    a.insert(a.end(),
+             {"--database_path",
+              db,
+              "--image_path",
+              sequence_,
+              "--output_path",
+              JoinPaths(dir, "sparse")});
     Append("mapper", &a);
     Exec(stage, a);
   } else if (name == "evaluate") {
@@ -560,8 +614,13 @@ void Pipeline::RunStage(StageState* stage) {
       const std::string estimate = JoinPaths(Dir(trajectory), "trajectory.txt");
       if (FileExists(gt)) {
         std::vector<std::string> a = Lisfm("evaluate");
-        a.insert(a.end(), {"--reference_path", gt, "--estimate_path", estimate, "--output_path",
-                           JoinPaths(dir, trajectory)});
+        a.insert(a.end(),
+                 {"--reference_path",
+                  gt,
+                  "--estimate_path",
+                  estimate,
+                  "--output_path",
+                  JoinPaths(dir, trajectory)});
         Append("evaluate", &a);
         Exec(stage, a);
       }
@@ -569,9 +628,15 @@ void Pipeline::RunStage(StageState* stage) {
         // The HILTI score needs non-collinear control points; a sequence whose
         // points do not fix the alignment has no score (the reason is logged).
         std::vector<std::string> a = Lisfm("evaluate");
-        a.insert(a.end(), {"--reference_path", control_points, "--reference_type",
-                           "control_points", "--estimate_path", estimate, "--output_path",
-                           JoinPaths(dir, trajectory + "_hilti")});
+        a.insert(a.end(),
+                 {"--reference_path",
+                  control_points,
+                  "--reference_type",
+                  "control_points",
+                  "--estimate_path",
+                  estimate,
+                  "--output_path",
+                  JoinPaths(dir, trajectory + "_hilti")});
         stage->commands.push_back(CommandLine(a));
         const std::string log = JoinPaths(dir, trajectory + "_hilti.log");
         if (RunChild(a, log) != 0) {
@@ -586,7 +651,8 @@ void Pipeline::RunStage(StageState* stage) {
     // that rejects the folder leaves the row "unavailable" with its message.
     std::vector<std::pair<std::string, std::string>> models = {
         {"global_mapper", JoinPaths(output_path, "sparse/0")}};
-    if (compare_stock) models.emplace_back("stock_mapper", LargestModel(Dir("stock_mapper") + "/sparse"));
+    if (compare_stock)
+      models.emplace_back("stock_mapper", LargestModel(Dir("stock_mapper") + "/sparse"));
     if (compare_exhaustive) {
       models.emplace_back("exhaustive_mapper", LargestModel(Dir("exhaustive_mapper") + "/sparse"));
     }
@@ -597,8 +663,15 @@ void Pipeline::RunStage(StageState* stage) {
         continue;
       }
       std::vector<std::string> a = Lisfm("model_evaluator");
-      a.insert(a.end(), {"--model_path", path, "--reference_path", sequence_, "--alignment", "se3",
-                         "--output_path", JoinPaths(dir, model + "_cameras.json")});
+      a.insert(a.end(),
+               {"--model_path",
+                path,
+                "--reference_path",
+                sequence_,
+                "--alignment",
+                "se3",
+                "--output_path",
+                JoinPaths(dir, model + "_cameras.json")});
       Append("model_evaluator", &a);
       stage->commands.push_back(CommandLine(a));
       const std::string log = JoinPaths(dir, model + "_cameras.log");
@@ -637,7 +710,8 @@ void Pipeline::CheckColmap(const std::string& first_stock_stage) {
     throw InputError(fmt::format(
         "stage {} needs stock COLMAP, but --colmap_path {} is not an executable{}; install "
         "COLMAP 3.8 (scripts/install_deps.sh) or pass its path with --colmap_path",
-        first_stock_stage, colmap_path,
+        first_stock_stage,
+        colmap_path,
         colmap_path.find('/') == std::string::npos ? " on PATH" : ""));
   }
   const std::string log =
@@ -649,7 +723,10 @@ void Pipeline::CheckColmap(const std::string& first_stock_stage) {
   if (at == std::string::npos) {
     throw InputError(fmt::format(
         "stage {} needs stock COLMAP, but `{} help` (exit code {}) printed no COLMAP version:\n{}",
-        first_stock_stage, colmap_, code, [&] {
+        first_stock_stage,
+        colmap_,
+        code,
+        [&] {
           const std::string tail = Tail(log, 20);
           fs::remove(log);
           return tail;
@@ -664,8 +741,8 @@ void Pipeline::RunPlots() {
   const std::string script = JoinPaths(scripts_path, "pipeline_plots.py");
   const std::string plots = JoinPaths(output_path, "plots");
   if (!FileExists(script) || access(python_path.c_str(), X_OK) != 0) {
-    notes_.push_back(fmt::format("no plots ({} or {} missing); the report is written without them",
-                                 script, python_path));
+    notes_.push_back(fmt::format(
+        "no plots ({} or {} missing); the report is written without them", script, python_path));
     return;
   }
   std::vector<std::string> a = {python_path, script, "--output_dir", plots};
@@ -680,7 +757,8 @@ void Pipeline::RunPlots() {
   const std::string log = JoinPaths(Dir("report"), "plots.log");
   if (RunChild(a, log) != 0) {
     notes_.push_back(fmt::format(
-        "the plot script failed (matplotlib missing?); report without plots. Log: {}\n{}", log,
+        "the plot script failed (matplotlib missing?); report without plots. Log: {}\n{}",
+        log,
         Tail(log, 5)));
   }
 }
@@ -783,12 +861,13 @@ json Pipeline::CollectReport() {
       {"stock_mapper", "colmap mapper (pair list)"},
       {"exhaustive_mapper", "colmap exhaustive_matcher + mapper"}};
   for (const auto& [stage, label] : methods) {
-    const auto it = std::find_if(stages_.begin(), stages_.end(),
-                                 [&](const StageState& s) { return s.name == stage; });
+    const auto it = std::find_if(
+        stages_.begin(), stages_.end(), [&](const StageState& s) { return s.name == stage; });
     if (it == stages_.end() || !it->enabled) continue;
     json row = {{"method", label}, {"stage", stage}, {"seconds", it->seconds}};
     const json& counts = counts_by_stage[stage];
-    for (const char* key : {"registered_images", "images", "points", "mean_reprojection_error_px"}) {
+    for (const char* key :
+         {"registered_images", "images", "points", "mean_reprojection_error_px"}) {
       if (counts.contains(key)) row[key] = counts[key];
     }
     if (auto m = ReadJson(JoinPaths(eval, stage + "_cameras.json"))) {
@@ -803,8 +882,7 @@ json Pipeline::CollectReport() {
   }
   report["comparison"] = comparison;
 
-  if (counts_by_stage.contains("exhaustive_mapper") &&
-      FileExists(Done("exhaustive_mapper"))) {
+  if (counts_by_stage.contains("exhaustive_mapper") && FileExists(Done("exhaustive_mapper"))) {
     const colmap::Database db(JoinPaths(Dir("exhaustive_mapper"), "database.db"),
                               colmap::Database::OpenMode::kReadOnly);
     const auto verified = VerifiedPairs(db);
@@ -823,9 +901,14 @@ json Pipeline::CollectReport() {
     }
   }
   report["plots"] = plots;
-  report["colmap_gui"] = CommandLine(
-      {"colmap", "gui", "--database_path", JoinPaths(Dir("matches_importer"), "database.db"),
-       "--image_path", sequence_, "--import_path", JoinPaths(output_path, "sparse/0")});
+  report["colmap_gui"] = CommandLine({"colmap",
+                                      "gui",
+                                      "--database_path",
+                                      JoinPaths(Dir("matches_importer"), "database.db"),
+                                      "--image_path",
+                                      sequence_,
+                                      "--import_path",
+                                      JoinPaths(output_path, "sparse/0")});
   return report;
 }
 
@@ -839,7 +922,9 @@ std::string Num(const json& j, int decimals) {
 void Pipeline::WriteReport(const json& report) {
   WriteFileAtomically(JoinPaths(output_path, "report.json"), report.dump(2) + "\n");
   std::string md = "# lisfm pipeline report\n\n";
-  md += fmt::format("Input `{}` → `{}`; stock COLMAP `{}` ({}).\n\n", input_path, output_path,
+  md += fmt::format("Input `{}` → `{}`; stock COLMAP `{}` ({}).\n\n",
+                    input_path,
+                    output_path,
                     report["colmap"]["path"].get<std::string>(),
                     report["colmap"]["version"].get<std::string>());
   md += "## Stages\n\n| stage | status | seconds | counts |\n|---|---|---:|---|\n";
@@ -848,19 +933,24 @@ void Pipeline::WriteReport(const json& report) {
     if (s.contains("counts")) {
       for (const auto& [k, v] : s["counts"].items()) {
         if (k == "model_path") continue;
-        counts += (counts.empty() ? "" : ", ") + k + " " + (v.is_string() ? v.get<std::string>()
-                                                                           : Num(v, 3));
+        counts += (counts.empty() ? "" : ", ") + k + " " +
+                  (v.is_string() ? v.get<std::string>() : Num(v, 3));
       }
     }
-    md += fmt::format("| {} | {} | {} | {} |\n", s["name"].get<std::string>(),
-                      s["status"].get<std::string>(), Num(s["seconds"], 1), counts);
+    md += fmt::format("| {} | {} | {} | {} |\n",
+                      s["name"].get<std::string>(),
+                      s["status"].get<std::string>(),
+                      Num(s["seconds"], 1),
+                      counts);
   }
   if (report.contains("trajectories") && !report["trajectories"].empty()) {
-    md += "\n## Trajectories vs ground truth\n\n| trajectory | ATE rmse [m] | ATE rot. rmse "
-          "[deg] | RPE/frame [m] | RPE/frame [deg] | HILTI 2022 score |\n"
-          "|---|---:|---:|---:|---:|---:|\n";
+    md +=
+        "\n## Trajectories vs ground truth\n\n| trajectory | ATE rmse [m] | ATE rot. rmse "
+        "[deg] | RPE/frame [m] | RPE/frame [deg] | HILTI 2022 score |\n"
+        "|---|---:|---:|---:|---:|---:|\n";
     for (const auto& [t, j] : report["trajectories"].items()) {
-      md += fmt::format("| {} | {} | {} | {} | {} | {} |\n", t,
+      md += fmt::format("| {} | {} | {} | {} | {} | {} |\n",
+                        t,
                         Num(j.value("ate_translation_rmse_m", json()), 4),
                         Num(j.value("ate_rotation_rmse_deg", json()), 3),
                         Num(j.value("rpe_translation_rmse_m", json()), 4),
@@ -868,9 +958,10 @@ void Pipeline::WriteReport(const json& report) {
                         Num(j.value("hilti2022_score", json()), 1));
     }
   }
-  md += "\n## Models side by side\n\n| method | seconds | registered / images | points | "
-        "reproj. [px] | position error mean / max [mm] | rotation error mean / max [deg] |\n"
-        "|---|---:|---:|---:|---:|---:|---:|\n";
+  md +=
+      "\n## Models side by side\n\n| method | seconds | registered / images | points | "
+      "reproj. [px] | position error mean / max [mm] | rotation error mean / max [deg] |\n"
+      "|---|---:|---:|---:|---:|---:|---:|\n";
   for (const json& row : report["comparison"]) {
     std::string position = "-", rotation = "-";
     if (row.contains("cameras") && row["cameras"].is_object()) {
@@ -879,31 +970,41 @@ void Pipeline::WriteReport(const json& report) {
         return v.is_number() ? fmt::format("{:.2f}", v.get<double>() * 1000) : std::string("-");
       };
       position = mm(c["position_error_m"]["mean"]) + " / " + mm(c["position_error_m"]["max"]);
-      rotation = Num(c["rotation_error_deg"]["mean"], 4) + " / " +
-                 Num(c["rotation_error_deg"]["max"], 4);
+      rotation =
+          Num(c["rotation_error_deg"]["mean"], 4) + " / " + Num(c["rotation_error_deg"]["max"], 4);
     } else if (row.contains("cameras")) {
       position = row["cameras"].get<std::string>();
     }
     md += fmt::format("| {} | {} | {} / {} | {} | {} | {} | {} |\n",
-                      row["method"].get<std::string>(), Num(row["seconds"], 1),
+                      row["method"].get<std::string>(),
+                      Num(row["seconds"], 1),
                       Num(row.value("registered_images", json()), 0),
-                      Num(row.value("images", json()), 0), Num(row.value("points", json()), 0),
-                      Num(row.value("mean_reprojection_error_px", json()), 3), position, rotation);
+                      Num(row.value("images", json()), 0),
+                      Num(row.value("points", json()), 0),
+                      Num(row.value("mean_reprojection_error_px", json()), 3),
+                      position,
+                      rotation);
   }
-  md += "\nCamera errors: `lisfm model_evaluator --alignment se3` against the sequence's ground "
-        "truth (no scale).\n";
+  md +=
+      "\nCamera errors: `lisfm model_evaluator --alignment se3` against the sequence's ground "
+      "truth (no scale: stock COLMAP's models have an arbitrary scale, which shows in their "
+      "position errors).\n";
   if (report.contains("covisibility_recall")) {
     const json& r = report["covisibility_recall"];
-    md += fmt::format("\nCo-visibility recall: {} of {} pairs verified by exhaustive matching "
-                      "are on the pair list ({:.1f} %).\n",
-                      Num(r["listed"], 0), Num(r["exhaustive_verified_pairs"], 0),
-                      100.0 * r["recall"].get<double>());
+    md += fmt::format(
+        "\nCo-visibility recall: {} of {} pairs verified by exhaustive matching "
+        "are on the pair list ({:.1f} %).\n",
+        Num(r["listed"], 0),
+        Num(r["exhaustive_verified_pairs"], 0),
+        100.0 * r["recall"].get<double>());
   }
   if (report.contains("rig") && !report["rig"].empty()) {
-    md += "\n## Camera extrinsics (cam_k_from_cam0) vs truth/rig.yaml\n\n| camera | calibration "
-          "[deg] | calibration [mm] | refined [deg] | refined [mm] |\n|---|---:|---:|---:|---:|\n";
+    md +=
+        "\n## Camera extrinsics (cam_k_from_cam0) vs truth/rig.yaml\n\n| camera | calibration "
+        "[deg] | calibration [mm] | refined [deg] | refined [mm] |\n|---|---:|---:|---:|---:|\n";
     for (const json& c : report["rig"]) {
-      md += fmt::format("| cam{} | {} | {} | {} | {} |\n", Num(c["camera"], 0),
+      md += fmt::format("| cam{} | {} | {} | {} | {} |\n",
+                        Num(c["camera"], 0),
                         Num(c["calibration_rotation_error_deg"], 4),
                         Num(c["calibration_translation_error_mm"], 2),
                         Num(c["refined_rotation_error_deg"], 4),
@@ -939,23 +1040,28 @@ int Pipeline::Run(int argc, char** argv) {
       "recording (sequence folder or ROS1 bag) -> lio -> pose_slam -> database_importer -> stock "
       "colmap features + matches on the pair list -> global_mapper -> evaluation and report; "
       "--config_path FILE.yaml holds per-stage options (configs/pipeline_*.yaml)");
-  options.AddRequiredString("input_path", &input_path,
-                            "sequence folder (with rig.yaml) or ROS1 bag (.bag)");
-  options.AddRequiredString("output_path", &output_path,
+  options.AddRequiredString(
+      "input_path", &input_path, "sequence folder (with rig.yaml) or ROS1 bag (.bag)");
+  options.AddRequiredString("output_path",
+                            &output_path,
                             "output folder: one subfolder per stage, sparse/0, report.md/json");
-  options.AddString("rig_path", &rig_path,
+  options.AddString("rig_path",
+                    &rig_path,
                     "rig YAML or Kalibr folder for a bag (a sequence folder has its rig.yaml)");
-  options.AddString("start_stage", &start_stage,
+  options.AddString("start_stage",
+                    &start_stage,
                     "rerun from this stage (later stages too); earlier ones must be done");
   options.AddString("end_stage", &end_stage, "stop after this stage");
   options.AddBool("overwrite", &overwrite, "rerun stages that are already done");
-  options.AddBool("compare_stock", &compare_stock,
+  options.AddBool("compare_stock",
+                  &compare_stock,
                   "also run stock colmap mapper on a copy of the matched database");
-  options.AddBool("compare_exhaustive", &compare_exhaustive,
+  options.AddBool("compare_exhaustive",
+                  &compare_exhaustive,
                   "also run stock exhaustive_matcher + mapper (slow for long recordings)");
   options.AddString("colmap_path", &colmap_path, "the colmap executable (name on PATH or path)");
-  options.AddString("scripts_path", &scripts_path,
-                    "folder of pipeline_plots.py (the source tree's scripts/)");
+  options.AddString(
+      "scripts_path", &scripts_path, "folder of pipeline_plots.py (the source tree's scripts/)");
   options.AddString("python_path", &python_path, "python3 with matplotlib, for the plots");
   if (!options.Parse(static_cast<int>(args.size()), args.data())) return 0;
 
@@ -967,24 +1073,27 @@ int Pipeline::Run(int argc, char** argv) {
       const std::string near = NearestName(stage, names);
       std::string all;
       for (const auto& n : names) all += (all.empty() ? "" : ", ") + n;
-      throw UsageError(fmt::format("--{} {}: unknown stage{}; stages: {}", option, stage,
-                                   near.empty() ? "" : " (did you mean '" + near + "'?)", all));
+      throw UsageError(fmt::format("--{} {}: unknown stage{}; stages: {}",
+                                   option,
+                                   stage,
+                                   near.empty() ? "" : " (did you mean '" + near + "'?)",
+                                   all));
     }
     return static_cast<size_t>(it - names.begin());
   };
   const size_t start_index = start_stage.empty() ? 0 : index_of(start_stage, "start_stage");
-  const size_t end_index =
-      end_stage.empty() ? names.size() - 1 : index_of(end_stage, "end_stage");
+  const size_t end_index = end_stage.empty() ? names.size() - 1 : index_of(end_stage, "end_stage");
   if (start_index > end_index) {
-    throw UsageError(fmt::format("--start_stage {} comes after --end_stage {}", start_stage,
-                                 end_stage));
+    throw UsageError(
+        fmt::format("--start_stage {} comes after --end_stage {}", start_stage, end_stage));
   }
   config_ = ReadPipelineConfig(config_path);
 
   // Input: a sequence folder or a bag.
   if (DirExists(input_path)) {
     if (!FileExists(JoinPaths(input_path, "rig.yaml"))) {
-      throw InputError(input_path, "",
+      throw InputError(input_path,
+                       "",
                        "expected a sequence folder (with rig.yaml) or a ROS1 bag (.bag); this "
                        "folder has no rig.yaml");
     }
@@ -994,7 +1103,8 @@ int Pipeline::Run(int argc, char** argv) {
     char magic[13] = {};
     in.read(magic, 13);
     if (std::string(magic, 13) != "#ROSBAG V2.0\n") {
-      throw InputError(input_path, "",
+      throw InputError(input_path,
+                       "",
                        "expected a sequence folder (with rig.yaml) or a ROS1 bag (.bag); this "
                        "file is not a ROS1 bag (no '#ROSBAG V2.0' header)");
     }
@@ -1012,9 +1122,10 @@ int Pipeline::Run(int argc, char** argv) {
     stages_.push_back(s);
   }
   if (!start_stage.empty() && !stages_[start_index].enabled) {
-    throw UsageError(fmt::format("--start_stage {}: that stage does not run for this input and "
-                                 "these options",
-                                 start_stage));
+    throw UsageError(
+        fmt::format("--start_stage {}: that stage does not run for this input and "
+                    "these options",
+                    start_stage));
   }
 
   // Which stages run: from start_index (everything from there is rerun) or
@@ -1026,9 +1137,13 @@ int Pipeline::Run(int argc, char** argv) {
     if (!s.enabled) continue;
     if (k < start_index) {
       if (!FileExists(Done(s.name))) {
-        throw UsageError(fmt::format("--start_stage {}: the earlier stage {} is not done ({} "
-                                     "missing); start from {}",
-                                     start_stage, s.name, Done(s.name), s.name));
+        throw UsageError(
+            fmt::format("--start_stage {}: the earlier stage {} is not done ({} "
+                        "missing); start from {}",
+                        start_stage,
+                        s.name,
+                        Done(s.name),
+                        s.name));
       }
       continue;
     }
@@ -1036,8 +1151,8 @@ int Pipeline::Run(int argc, char** argv) {
     rerun = true;  // every stage after one that runs runs too
     to_run.push_back(k);
   }
-  const std::set<std::string> stock = {"feature_extractor", "matches_importer", "stock_mapper",
-                                       "exhaustive_mapper"};
+  const std::set<std::string> stock = {
+      "feature_extractor", "matches_importer", "stock_mapper", "exhaustive_mapper"};
   for (size_t k : to_run) {
     if (stock.count(stages_[k].name)) {
       CheckColmap(stages_[k].name);
@@ -1073,7 +1188,8 @@ int Pipeline::Run(int argc, char** argv) {
     std::string y = "# lisfm pipeline: effective options of the last run\n";
     y += "input_path: " + input_path + "\noutput_path: " + output_path + "\n";
     y += "rig_path: \"" + rig_path + "\"\ncolmap_path: " + colmap_path + "\n";
-    y += fmt::format("compare_stock: {}\ncompare_exhaustive: {}\n", compare_stock ? 1 : 0,
+    y += fmt::format("compare_stock: {}\ncompare_exhaustive: {}\n",
+                     compare_stock ? 1 : 0,
                      compare_exhaustive ? 1 : 0);
     y += "config_path: \"" + config_path + "\"\nstages:\n";
     for (const auto& [key, list] : config_) {
@@ -1124,7 +1240,9 @@ int Pipeline::Run(int argc, char** argv) {
     } else {
       WriteFileAtomically(JoinPaths(Dir(s.name), "stage.log"), "");  // ran no child process
     }
-    json done = {{"stage", s.name}, {"commands", s.commands}, {"seconds", s.seconds},
+    json done = {{"stage", s.name},
+                 {"commands", s.commands},
+                 {"seconds", s.seconds},
                  {"finished", NowUtc()}};
     WriteFileAtomically(Done(s.name), done.dump(2) + "\n");
     std::cout << fmt::format(" {:.1f} s\n", s.seconds) << std::flush;
@@ -1142,10 +1260,10 @@ int Pipeline::Run(int argc, char** argv) {
     if (!s.enabled) continue;
     std::cout << fmt::format("{:<20}{:<10}{:>10.1f}\n", s.name, s.status, s.seconds);
   }
-  std::cout << fmt::format("{:<30}{:>10.1f}\n", "this run",
-                           std::chrono::duration<double>(std::chrono::steady_clock::now() -
-                                                         total_start)
-                               .count());
+  std::cout << fmt::format(
+      "{:<30}{:>10.1f}\n",
+      "this run",
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - total_start).count());
   std::cout << "\nmodel   " << JoinPaths(output_path, "sparse/0") << "\nreport  "
             << JoinPaths(output_path, "report.md") << " (and report.json)\n";
   return 0;

@@ -26,9 +26,14 @@ namespace {
 namespace fs = std::filesystem;
 
 // The stages of a sequence-folder run without the stock comparisons.
-const std::vector<std::string> kStages = {"lio",           "pose_slam",       "database_importer",
-                                          "feature_extractor", "matches_importer", "global_mapper",
-                                          "evaluate",      "report"};
+const std::vector<std::string> kStages = {"lio",
+                                          "pose_slam",
+                                          "database_importer",
+                                          "feature_extractor",
+                                          "matches_importer",
+                                          "global_mapper",
+                                          "evaluate",
+                                          "report"};
 
 class PipelineTest : public ::testing::Test {
  protected:
@@ -90,32 +95,42 @@ TEST_F(PipelineTest, EveryStageWritesItsOutputsAndTheModelIsCloseToTheTruth) {
     EXPECT_TRUE(FileExists(o + "/" + stage + "/stage.log")) << stage;
     EXPECT_FALSE(FileExists(o + "/" + stage + ".log")) << stage;
     // One progress line per stage with its time.
-    const std::regex line("\\[" + std::to_string(k + 1) + "/8\\] " + stage + " \\.\\.\\. [0-9.]+ s");
+    const std::regex line("\\[" + std::to_string(k + 1) + "/8\\] " + stage +
+                          " \\.\\.\\. [0-9.]+ s");
     EXPECT_TRUE(std::regex_search(first_output_, line)) << stage << "\n" << first_output_;
   }
-  for (const char* f : {"lio/trajectory.txt", "lio/lio_config.yaml", "pose_slam/trajectory.txt",
-                        "pose_slam/constraints.txt", "database_importer/pairs.txt",
-                        "database_importer/rig.yaml", "feature_extractor/database.db",
-                        "matches_importer/database.db", "global_mapper/0/images.bin",
-                        "global_mapper/global_mapper_config.yaml", "sparse/0/cameras.bin",
-                        "sparse/0/images.bin", "sparse/0/points3D.bin",
-                        "evaluate/lio/metrics.json", "evaluate/pose_slam/metrics.json",
-                        "evaluate/rig.json", "report.json", "report.md",
+  for (const char* f : {"lio/trajectory.txt",
+                        "lio/lio_config.yaml",
+                        "pose_slam/trajectory.txt",
+                        "pose_slam/constraints.txt",
+                        "database_importer/pairs.txt",
+                        "database_importer/rig.yaml",
+                        "feature_extractor/database.db",
+                        "matches_importer/database.db",
+                        "global_mapper/0/images.bin",
+                        "global_mapper/global_mapper_config.yaml",
+                        "sparse/0/cameras.bin",
+                        "sparse/0/images.bin",
+                        "sparse/0/points3D.bin",
+                        "evaluate/lio/metrics.json",
+                        "evaluate/pose_slam/metrics.json",
+                        "evaluate/rig.json",
+                        "report.json",
+                        "report.md",
                         "pipeline_config.yaml"}) {
     EXPECT_TRUE(FileExists(o + "/" + f)) << f;
   }
   // The per-stage options of the config file reached colmap.
-  EXPECT_NE(ReadFile(o + "/feature_extractor/stage.log")
-                .find("--SiftExtraction.max_num_features 1024"),
-            std::string::npos);
+  EXPECT_NE(
+      ReadFile(o + "/feature_extractor/stage.log").find("--SiftExtraction.max_num_features 1024"),
+      std::string::npos);
 
   // Stock COLMAP opens the model.
   std::string out;
   ASSERT_EQ(test::RunCommand("colmap model_analyzer --path " + o + "/sparse/0 2>&1", &out), 0)
       << out;
   const colmap::Reconstruction model = colmap::ReadModel(o + "/sparse/0");
-  EXPECT_NE(out.find("Registered images: " + std::to_string(model.NumImages())),
-            std::string::npos)
+  EXPECT_NE(out.find("Registered images: " + std::to_string(model.NumImages())), std::string::npos)
       << out;
 
   // The report's numbers are the model's.
@@ -182,21 +197,21 @@ TEST_F(PipelineTest, SecondRunSkipsAndStartStageRerunsFromThere) {
   EXPECT_EQ(out.find(" ... "), std::string::npos) << out;
 
   ASSERT_EQ(Pipeline(o, &out, "--start_stage global_mapper"), 0) << out;
-  for (const std::string& stage : {"lio", "pose_slam", "database_importer", "feature_extractor",
-                                   "matches_importer"}) {
+  for (const std::string stage :
+       {"lio", "pose_slam", "database_importer", "feature_extractor", "matches_importer"}) {
     EXPECT_NE(out.find("] " + stage + " done earlier, skipped"), std::string::npos) << out;
   }
-  for (const std::string& stage : {"global_mapper", "evaluate", "report"}) {
+  for (const std::string stage : {"global_mapper", "evaluate", "report"}) {
     EXPECT_TRUE(std::regex_search(out, std::regex("\\] " + stage + " \\.\\.\\. [0-9.]+ s")))
-        << stage << "\n" << out;
+        << stage << "\n"
+        << out;
     EXPECT_TRUE(FileExists(o + "/" + stage + "/DONE")) << stage;
   }
   EXPECT_EQ(ReadFile(o + "/lio/DONE"), lio_done);
   EXPECT_TRUE(FileExists(o + "/sparse/0/images.bin"));
 
   // --end_stage stops; the stages after it keep no done file of a rerun.
-  ASSERT_EQ(Pipeline(o, &out, "--start_stage database_importer --end_stage database_importer"),
-            0)
+  ASSERT_EQ(Pipeline(o, &out, "--start_stage database_importer --end_stage database_importer"), 0)
       << out;
   EXPECT_TRUE(FileExists(o + "/database_importer/DONE"));
   EXPECT_FALSE(FileExists(o + "/feature_extractor/DONE"));
@@ -243,8 +258,8 @@ TEST_F(PipelineTest, StageFailingInTheMiddleKeepsTheCompletedStages) {
   // A corrupted pose_slam input: lio's trajectory no longer holds its keyframes.
   const std::string o = dir_->File("failing");
   fs::create_directories(o);
-  for (const char* stage : {"lio"}) fs::copy(Out() + "/" + stage, o + "/" + stage,
-                                             fs::copy_options::recursive);
+  for (const char* stage : {"lio"})
+    fs::copy(Out() + "/" + stage, o + "/" + stage, fs::copy_options::recursive);
   test::WriteText(o + "/.lisfm_pipeline", "lisfm pipeline output\n");
   test::WriteText(o + "/lio/trajectory.txt", "1000.0 0 0 0 0 0 0 1\n1001.0 0 0 0 0 0 0 1\n");
   std::string out;
@@ -260,8 +275,9 @@ TEST_F(PipelineTest, StageFailingInTheMiddleKeepsTheCompletedStages) {
   // An option the stage rejects, from the config file.
   const std::string config = dir_->File("bad_option.yaml");
   test::WriteText(config, "pose_slam:\n  PoseSlam.no_such_option: 1\n");
-  fs::copy(Out() + "/lio", o + "/lio", fs::copy_options::recursive |
-                                          fs::copy_options::overwrite_existing);
+  fs::copy(Out() + "/lio",
+           o + "/lio",
+           fs::copy_options::recursive | fs::copy_options::overwrite_existing);
   EXPECT_EQ(test::RunCommand(test::LisfmBinary() + " pipeline --input_path " + Seq() +
                                  " --output_path " + o + " --config_path " + config + " 2>&1",
                              &out),
@@ -277,11 +293,11 @@ TEST_F(PipelineTest, UnknownConfigKeyNamesTheFileAndKey) {
   const std::string config = dir_->File("bad_key.yaml");
   test::WriteText(config, "lio: {}\nglobal_maper:\n  Mapper.x: 1\n");
   std::string out;
-  EXPECT_EQ(test::RunCommand(test::LisfmBinary() + " pipeline --input_path " + Seq() +
-                                 " --output_path " + dir_->File("bad_key") + " --config_path " +
-                                 config + " 2>&1",
-                             &out),
-            1)
+  EXPECT_EQ(
+      test::RunCommand(test::LisfmBinary() + " pipeline --input_path " + Seq() + " --output_path " +
+                           dir_->File("bad_key") + " --config_path " + config + " 2>&1",
+                       &out),
+      1)
       << out;
   EXPECT_NE(out.find(config + ":line 2: unknown key 'global_maper' (did you mean "
                               "'global_mapper'?)"),
