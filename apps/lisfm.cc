@@ -50,6 +50,10 @@ const std::vector<Command>& Commands() {
        "global SfM on a COLMAP database (rotation/translation averaging, rig BA with priors and "
        "LiDAR constraints)",
        &RunGlobalMapper},
+      {"pipeline",
+       "recording -> lio -> pose_slam -> database_importer -> stock colmap features and matches "
+       "-> global_mapper -> evaluation; one folder per stage, a report and resume",
+       &RunPipeline},
       {"model_evaluator", "score a COLMAP model's cameras against reference cameras (AUC, errors)",
        &RunModelEvaluator},
   };
