@@ -9,12 +9,14 @@ namespace {
 
 using R = OptionRange;
 
-const std::vector<std::string> kRobustKernels = {"none", "huber", "cauchy", "geman_mcclure"};
+const std::vector<std::string> kRobustKernels = {
+    "none", "huber", "cauchy", "geman_mcclure"};
 
 std::vector<std::pair<std::string, AlignmentType>> AlignmentChoices(
     const std::vector<AlignmentType>& order) {
   std::vector<std::pair<std::string, AlignmentType>> choices;
-  for (const AlignmentType a : order) choices.emplace_back(AlignmentTypeName(a), a);
+  for (const AlignmentType a : order)
+    choices.emplace_back(AlignmentTypeName(a), a);
   return choices;
 }
 
@@ -23,108 +25,77 @@ std::vector<std::pair<std::string, AlignmentType>> AlignmentChoices(
 void AddDatabaseImporterOptions(OptionManager* options, DatabaseImporterOptions* importer) {
   CovisibilityOptions* c = &importer->covisibility;
   ImporterPriorOptions* p = &importer->priors;
-  options->AddDouble("DatabaseImporter.max_point_distance_m",
-                     &c->max_point_distance_m,
+  options->AddDouble("DatabaseImporter.max_point_distance_m", &c->max_point_distance_m,
                      "m, a point of scan i is a co-visible point when scan j has a point "
                      "within this",
                      R::GreaterThan(0));
-  options->AddChoice("DatabaseImporter.covisibility_source",
-                     &c->source,
-                     {"map", "constraints"},
+  options->AddChoice("DatabaseImporter.covisibility_source", &c->source, {"map", "constraints"},
                      "LiDAR co-visibility from every keyframe scan in one map (image pairs by "
                      "shared visible map points), or from the constrained scan pairs only");
-  options->AddDouble("DatabaseImporter.max_view_angle_deg",
-                     &c->max_view_angle_deg,
+  options->AddDouble("DatabaseImporter.max_view_angle_deg", &c->max_view_angle_deg,
                      "deg, map co-visibility: largest angle between the two images' rays to a "
                      "shared point",
                      R::GreaterThan(0).AndAtMost(180));
-  options->AddDouble("DatabaseImporter.max_point_range_m",
-                     &c->max_point_range_m,
+  options->AddDouble("DatabaseImporter.max_point_range_m", &c->max_point_range_m,
                      "m, map co-visibility: farthest map point an image counts (0 = no limit)",
                      R::AtLeast(0));
-  options->AddChoice("DatabaseImporter.score",
-                     &c->score,
-                     {"count", "fraction"},
+  options->AddChoice("DatabaseImporter.score", &c->score, {"count", "fraction"},
                      "ranking score of a co-visible pair: its votes, or (map) its votes over "
                      "the smaller number of map points the two images see");
-  options->AddDouble("DatabaseImporter.scan_voxel_size_m",
-                     &c->scan_voxel_size_m,
+  options->AddDouble("DatabaseImporter.scan_voxel_size_m", &c->scan_voxel_size_m,
                      "m, voxel downsampling of the projected points and z-buffers (0 = off)",
                      R::AtLeast(0));
-  options->AddDouble("DatabaseImporter.max_image_time_offset_s",
-                     &c->max_image_time_offset_s,
+  options->AddDouble("DatabaseImporter.max_image_time_offset_s", &c->max_image_time_offset_s,
                      "s, an image belongs to the keyframe scan nearest in time, at most this far",
                      R::GreaterThan(0));
-  options->AddInt("DatabaseImporter.zbuffer_cell_px",
-                  &c->zbuffer_cell_px,
-                  "px, z-buffer cell edge of the visibility test",
-                  R::AtLeast(1));
-  options->AddDouble("DatabaseImporter.point_footprint_m",
-                     &c->point_footprint_m,
+  options->AddInt("DatabaseImporter.zbuffer_cell_px", &c->zbuffer_cell_px,
+                  "px, z-buffer cell edge of the visibility test", R::AtLeast(1));
+  options->AddDouble("DatabaseImporter.point_footprint_m", &c->point_footprint_m,
                      "m, diameter of the surface patch each scan point covers in the z-buffer",
                      R::AtLeast(0));
-  options->AddDouble("DatabaseImporter.occlusion_tolerance_m",
-                     &c->occlusion_tolerance_m,
+  options->AddDouble("DatabaseImporter.occlusion_tolerance_m", &c->occlusion_tolerance_m,
                      "m, a point is visible up to this behind the nearest scan point of its cell",
                      R::AtLeast(0));
   options->AddDouble("DatabaseImporter.occlusion_tolerance_ratio",
                      &c->occlusion_tolerance_ratio,
                      "relative depth margin of the visibility test (fraction of the range)",
                      R::AtLeast(0));
-  options->AddInt("DatabaseImporter.min_count",
-                  &c->min_count,
-                  "co-visible points an image pair needs to be listed",
-                  R::AtLeast(1));
-  options->AddInt("DatabaseImporter.max_pairs_per_image",
-                  &c->max_pairs_per_image,
+  options->AddInt("DatabaseImporter.min_count", &c->min_count,
+                  "co-visible points an image pair needs to be listed", R::AtLeast(1));
+  options->AddInt("DatabaseImporter.max_pairs_per_image", &c->max_pairs_per_image,
                   "best co-visibility pairs kept per image (a pair stays when either image "
                   "keeps it)",
                   R::AtLeast(1));
-  options->AddInt("DatabaseImporter.num_temporal_neighbors",
-                  &c->num_temporal_neighbors,
-                  "successive images of the same camera paired with each image",
-                  R::AtLeast(0));
-  options->AddBool("DatabaseImporter.intra_rig_pairs",
-                   &c->intra_rig_pairs,
+  options->AddInt("DatabaseImporter.num_temporal_neighbors", &c->num_temporal_neighbors,
+                  "successive images of the same camera paired with each image", R::AtLeast(0));
+  options->AddBool("DatabaseImporter.intra_rig_pairs", &c->intra_rig_pairs,
                    "pair the cameras of one rig frame whose views overlap");
-  options->AddDouble("DatabaseImporter.min_view_overlap",
-                     &c->min_view_overlap,
+  options->AddDouble("DatabaseImporter.min_view_overlap", &c->min_view_overlap,
                      "fraction of one camera's rays (at view_overlap_depth_m) the other sees "
                      "for an intra-rig pair",
                      R::Between(0, 1));
-  options->AddDouble("DatabaseImporter.view_overlap_depth_m",
-                     &c->view_overlap_depth_m,
-                     "m, depth of the intra-rig view-overlap test",
-                     R::GreaterThan(0));
-  options->AddInt("DatabaseImporter.fallback_num_neighbors",
-                  &c->fallback_num_neighbors,
+  options->AddDouble("DatabaseImporter.view_overlap_depth_m", &c->view_overlap_depth_m,
+                     "m, depth of the intra-rig view-overlap test", R::GreaterThan(0));
+  options->AddInt("DatabaseImporter.fallback_num_neighbors", &c->fallback_num_neighbors,
                   "without constraints: nearest images by prior position paired with each",
                   R::AtLeast(1));
-  options->AddInt("DatabaseImporter.num_threads",
-                  &c->num_threads,
-                  "threads (-1 = all cores)",
+  options->AddInt("DatabaseImporter.num_threads", &c->num_threads, "threads (-1 = all cores)",
                   R::AtLeast(1).Or(-1));
-  options->AddDouble("DatabaseImporter.min_position_sigma_m",
-                     &p->min_position_sigma_m,
-                     "m, floor of the prior position sigma per axis",
-                     R::GreaterThan(0));
-  options->AddDouble("DatabaseImporter.drift_m_per_s",
-                     &p->drift_m_per_s,
+  options->AddDouble("DatabaseImporter.min_position_sigma_m", &p->min_position_sigma_m,
+                     "m, floor of the prior position sigma per axis", R::GreaterThan(0));
+  options->AddDouble("DatabaseImporter.drift_m_per_s", &p->drift_m_per_s,
                      "m/s, position sigma growth with the time to the nearest keyframe (priors, "
                      "constraints)",
                      R::AtLeast(0));
-  options->AddDouble("DatabaseImporter.drift_rad_per_s",
-                     &p->drift_rad_per_s,
+  options->AddDouble("DatabaseImporter.drift_rad_per_s", &p->drift_rad_per_s,
                      "rad/s, rotation sigma growth with the time between a keyframe and its rig "
                      "frame (constraints)",
                      R::AtLeast(0));
-  options->AddDouble("DatabaseImporter.max_extrapolation_s",
-                     &p->max_extrapolation_s,
+  options->AddDouble("DatabaseImporter.max_extrapolation_s", &p->max_extrapolation_s,
                      "s, images at most this far outside the pose_slam trajectory keep the end "
                      "pose as prior; farther ones are left out",
                      R::AtLeast(0));
-  options->AddDouble("DatabaseImporter.max_frame_time_offset_s",
-                     &p->max_frame_time_offset_s,
+  options->AddDouble("DatabaseImporter.max_frame_time_offset_s", &p->max_frame_time_offset_s,
                      "s, a constraint's keyframe is moved to the nearest rig frame at most "
                      "this far away",
                      R::GreaterThan(0));
@@ -146,19 +117,24 @@ void AddIcpOptions(OptionManager* options, IcpOptions* icp) {
                      &icp->max_correspondence_distance_m,
                      "reject matches farther than this (m)",
                      R::GreaterThan(0));
-  options->AddAlias("Icp.max_correspondence_distance", "Icp.max_correspondence_distance_m");
-  options->AddDouble("Icp.max_normal_angle_deg",
-                     &icp->max_normal_angle_deg,
-                     "reject matches whose source and target normals differ more (deg; only "
-                     "when the source has normals)",
-                     R::GreaterThan(0).AndAtMost(180));
+  options->AddAlias("Icp.max_correspondence_distance",
+                    "Icp.max_correspondence_distance_m");
+  options->AddDouble(
+      "Icp.max_normal_angle_deg",
+      &icp->max_normal_angle_deg,
+      "reject matches whose source and target normals differ more (deg; only "
+      "when the source has normals)",
+      R::GreaterThan(0).AndAtMost(180));
   options->AddDouble("Icp.min_planarity",
                      &icp->min_planarity,
                      "ignore target points with lower planarity",
                      R::Between(0, 1));
-  options->AddChoice("Icp.kernel", &icp->kernel, kRobustKernels, "robust kernel");
-  options->AddDouble(
-      "Icp.kernel_scale_m", &icp->kernel_scale_m, "robust kernel scale (m)", R::GreaterThan(0));
+  options->AddChoice(
+      "Icp.kernel", &icp->kernel, kRobustKernels, "robust kernel");
+  options->AddDouble("Icp.kernel_scale_m",
+                     &icp->kernel_scale_m,
+                     "robust kernel scale (m)",
+                     R::GreaterThan(0));
   options->AddAlias("Icp.kernel_scale", "Icp.kernel_scale_m");
   options->AddDouble("Icp.convergence_rotation_rad",
                      &icp->convergence_rotation_rad,
@@ -169,7 +145,8 @@ void AddIcpOptions(OptionManager* options, IcpOptions* icp) {
                      &icp->convergence_translation_m,
                      "step threshold (m)",
                      R::AtLeast(0));
-  options->AddAlias("Icp.convergence_translation", "Icp.convergence_translation_m");
+  options->AddAlias("Icp.convergence_translation",
+                    "Icp.convergence_translation_m");
   options->AddInt("Icp.min_inliers",
                   &icp->min_inliers,
                   "fewer matches end the registration as not converged",
@@ -179,35 +156,41 @@ void AddIcpOptions(OptionManager* options, IcpOptions* icp) {
                   "the finest coarse level uses every k-th source point (1 = "
                   "no coarse levels)",
                   R::AtLeast(1));
-  options->AddInt("Icp.coarse_levels",
-                  &icp->coarse_levels,
-                  "coarse levels at most (every 2^(L-1) k-th, ..., k-th source point)",
-                  R::Between(0, 8));
-  options->AddInt("Icp.coarse_min_points",
-                  &icp->coarse_min_points,
-                  "a coarse level is used only with at least this many source points",
-                  R::AtLeast(1));
+  options->AddInt(
+      "Icp.coarse_levels",
+      &icp->coarse_levels,
+      "coarse levels at most (every 2^(L-1) k-th, ..., k-th source point)",
+      R::Between(0, 8));
+  options->AddInt(
+      "Icp.coarse_min_points",
+      &icp->coarse_min_points,
+      "a coarse level is used only with at least this many source points",
+      R::AtLeast(1));
   options->AddDouble("Icp.degeneracy_threshold",
                      &icp->degeneracy_threshold,
                      "min/max eigenvalue ratio of the scaled Hessian",
                      R::AtLeast(0));
-  options->AddBool("Icp.field_of_view_gate",
-                   &icp->field_of_view_gate,
-                   "no match for source points outside the target scan's elevation band or "
-                   "range (target in its sensor frame, spin axis z)");
-  options->AddDouble("Icp.visibility_gate_m",
-                     &icp->visibility_gate_m,
-                     "no match for source points hidden more than this (m, + 2 % of the "
-                     "range) "
-                     "behind the target scan's surface seen from its sensor (0 = off)",
-                     R::AtLeast(0));
+  options->AddBool(
+      "Icp.field_of_view_gate",
+      &icp->field_of_view_gate,
+      "no match for source points outside the target scan's elevation band or "
+      "range (target in its sensor frame, spin axis z)");
+  options->AddDouble(
+      "Icp.visibility_gate_m",
+      &icp->visibility_gate_m,
+      "no match for source points hidden more than this (m, + 2 % of the "
+      "range) "
+      "behind the target scan's surface seen from its sensor (0 = off)",
+      R::AtLeast(0));
   options->AddAlias("Icp.visibility_gate", "Icp.visibility_gate_m");
   options->AddStructCheck([icp] { return icp->Check(); });
 }
 
 void AddNormalOptions(OptionManager* options, NormalOptions* normals) {
-  options->AddInt(
-      "Icp.num_neighbors", &normals->num_neighbors, "k of the PCA normals", R::Between(3, 64));
+  options->AddInt("Icp.num_neighbors",
+                  &normals->num_neighbors,
+                  "k of the PCA normals",
+                  R::Between(3, 64));
   options->AddAlias("Icp.normal_neighbors", "Icp.num_neighbors");
   options->AddDouble("Icp.max_radius_m",
                      &normals->max_radius_m,
@@ -223,11 +206,19 @@ void AddSgldOptions(OptionManager* options, SgldOptions* sgld) {
                   "SGLD iterations including burn-in",
                   R::AtLeast(1));
   options->AddAlias("Bayesian.iterations", "Bayesian.num_iterations");
-  options->AddInt("Bayesian.burn_in", &sgld->burn_in, "SGLD burn-in iterations", R::AtLeast(0));
+  options->AddInt("Bayesian.burn_in",
+                  &sgld->burn_in,
+                  "SGLD burn-in iterations",
+                  R::AtLeast(0));
   options->RequireLess("Bayesian.burn_in", "Bayesian.num_iterations");
-  options->AddInt("Bayesian.thinning", &sgld->thinning, "keep every k-th sample", R::AtLeast(1));
-  options->AddInt(
-      "Bayesian.batch_size", &sgld->batch_size, "correspondences per mini-batch", R::AtLeast(1));
+  options->AddInt("Bayesian.thinning",
+                  &sgld->thinning,
+                  "keep every k-th sample",
+                  R::AtLeast(1));
+  options->AddInt("Bayesian.batch_size",
+                  &sgld->batch_size,
+                  "correspondences per mini-batch",
+                  R::AtLeast(1));
   options->AddDouble("Bayesian.step_size",
                      &sgld->step_size,
                      "SGLD step in the preconditioned metric",
@@ -278,11 +269,12 @@ void AddBayesianIcpOptions(OptionManager* options, BayesianIcpOptions* bayes) {
                    "Icp.field_of_view_gate of --method bayesian (replaces it; "
                    "calibrated with 1; "
                    "set 0 for clouds not in their sensor frame)");
-  options->AddDouble("Bayesian.visibility_gate_m",
-                     &icp->visibility_gate_m,
-                     "Icp.visibility_gate_m of --method bayesian (m; replaces it; calibrated "
-                     "with 0.1; set 0 for clouds not in their sensor frame)",
-                     R::AtLeast(0));
+  options->AddDouble(
+      "Bayesian.visibility_gate_m",
+      &icp->visibility_gate_m,
+      "Icp.visibility_gate_m of --method bayesian (m; replaces it; calibrated "
+      "with 0.1; set 0 for clouds not in their sensor frame)",
+      R::AtLeast(0));
   options->AddAlias("Bayesian.visibility_gate", "Bayesian.visibility_gate_m");
   AddSgldOptions(options, &bayes->sgld);
   options->AddDouble("Bayesian.noise_sigma_m",
@@ -290,22 +282,25 @@ void AddBayesianIcpOptions(OptionManager* options, BayesianIcpOptions* bayes) {
                      "likelihood sigma (m), 0 = from the pair's residuals",
                      R::AtLeast(0));
   options->AddAlias("Bayesian.noise_sigma", "Bayesian.noise_sigma_m");
-  options->AddDouble("Bayesian.correlation_length_m",
-                     &bayes->correlation_length_m,
-                     "cell edge of the noise estimate (m) when num_correlation_cells = 0",
-                     R::AtLeast(0));
+  options->AddDouble(
+      "Bayesian.correlation_length_m",
+      &bayes->correlation_length_m,
+      "cell edge of the noise estimate (m) when num_correlation_cells = 0",
+      R::AtLeast(0));
   options->AddInt("Bayesian.num_correlation_cells",
                   &bayes->num_correlation_cells,
                   "spatial cells of the per-pair (cluster sandwich) noise "
                   "estimate (0 = cells of "
                   "correlation_length_m)",
                   R::AtLeast(2).Or(0));
-  options->AddDouble("Bayesian.jackknife_leverage_power",
-                     &bayes->jackknife_leverage_power,
-                     "leverage adjustment of the cluster sandwich: 0 = CR1, 1 = CR3 jackknife "
-                     "(calibrated)",
-                     R::AtLeast(0));
-  options->AddAlias("Bayesian.leverage_power", "Bayesian.jackknife_leverage_power");
+  options->AddDouble(
+      "Bayesian.jackknife_leverage_power",
+      &bayes->jackknife_leverage_power,
+      "leverage adjustment of the cluster sandwich: 0 = CR1, 1 = CR3 jackknife "
+      "(calibrated)",
+      R::AtLeast(0));
+  options->AddAlias("Bayesian.leverage_power",
+                    "Bayesian.jackknife_leverage_power");
   options->AddDouble("Bayesian.refine_max_correspondence_distance_m",
                      &bayes->refine_max_correspondence_distance_m,
                      "after the ICP, refine it and associate the posterior "
@@ -326,14 +321,16 @@ void AddBayesianIcpOptions(OptionManager* options, BayesianIcpOptions* bayes) {
                    "(normal uncertainty x "
                    "offset)");
   CorrespondenceVarianceOptions* variance = &bayes->correspondence_variance;
-  options->AddDouble("Bayesian.plane_variance_weight",
-                     &variance->plane_variance_weight,
-                     "plane_fit_variance: weight of the plane-fit scatter (2 = both clouds)",
-                     R::AtLeast(0));
-  options->AddDouble("Bayesian.max_tilt_variance_rad2",
-                     &variance->max_tilt_variance_rad2,
-                     "plane_fit_variance: cap of a normal tilt variance (rad^2)",
-                     R::AtLeast(0));
+  options->AddDouble(
+      "Bayesian.plane_variance_weight",
+      &variance->plane_variance_weight,
+      "plane_fit_variance: weight of the plane-fit scatter (2 = both clouds)",
+      R::AtLeast(0));
+  options->AddDouble(
+      "Bayesian.max_tilt_variance_rad2",
+      &variance->max_tilt_variance_rad2,
+      "plane_fit_variance: cap of a normal tilt variance (rad^2)",
+      R::AtLeast(0));
   options->AddDouble("Bayesian.floor_m2",
                      &variance->floor_m2,
                      "plane_fit_variance: added to every variance (m^2)",
@@ -343,19 +340,22 @@ void AddBayesianIcpOptions(OptionManager* options, BayesianIcpOptions* bayes) {
                    "rescale the rotation / translation blocks of the posterior "
                    "to the cluster "
                    "jackknife");
-  options->AddDouble("Bayesian.prior_sigma_rotation_rad",
-                     &bayes->prior_sigma_rotation_rad,
-                     "Gaussian prior on the pose around --init_path, rotation sigma (rad; 0 = "
-                     "flat)",
-                     R::AtLeast(0));
-  options->AddAlias("Bayesian.prior_sigma_rotation", "Bayesian.prior_sigma_rotation_rad");
+  options->AddDouble(
+      "Bayesian.prior_sigma_rotation_rad",
+      &bayes->prior_sigma_rotation_rad,
+      "Gaussian prior on the pose around --init_path, rotation sigma (rad; 0 = "
+      "flat)",
+      R::AtLeast(0));
+  options->AddAlias("Bayesian.prior_sigma_rotation",
+                    "Bayesian.prior_sigma_rotation_rad");
   options->AddDouble("Bayesian.prior_sigma_translation_m",
                      &bayes->prior_sigma_translation_m,
                      "Gaussian prior on the pose around --init_path, "
                      "translation sigma (m; 0 = "
                      "flat)",
                      R::AtLeast(0));
-  options->AddAlias("Bayesian.prior_sigma_translation", "Bayesian.prior_sigma_translation_m");
+  options->AddAlias("Bayesian.prior_sigma_translation",
+                    "Bayesian.prior_sigma_translation_m");
   options->AddStructCheck([bayes] { return bayes->Check(); });
 }
 
@@ -372,12 +372,19 @@ void AddLioOptions(OptionManager* options, LioOptions* lio) {
                      &lio->scan_voxel_size,
                      "m, scan down-sampling voxel (0 = off)",
                      R::AtLeast(0));
-  options->AddDouble(
-      "Lio.min_range", &lio->min_range, "m, closer points are dropped (blind zone)", R::AtLeast(0));
-  options->AddDouble(
-      "Lio.max_range", &lio->max_range, "m, farther points are dropped", R::GreaterThan(0));
+  options->AddDouble("Lio.min_range",
+                     &lio->min_range,
+                     "m, closer points are dropped (blind zone)",
+                     R::AtLeast(0));
+  options->AddDouble("Lio.max_range",
+                     &lio->max_range,
+                     "m, farther points are dropped",
+                     R::GreaterThan(0));
   options->RequireLess("Lio.min_range", "Lio.max_range");
-  options->AddInt("Lio.num_neighbours", &lio->num_neighbours, "k of the plane fit", R::AtLeast(3));
+  options->AddInt("Lio.num_neighbours",
+                  &lio->num_neighbours,
+                  "k of the plane fit",
+                  R::AtLeast(3));
   options->AddDouble("Lio.max_neighbour_distance",
                      &lio->max_neighbour_distance,
                      "m, farthest allowed plane neighbour",
@@ -394,14 +401,19 @@ void AddLioOptions(OptionManager* options, LioOptions* lio) {
                      &lio->point_noise_std,
                      "m, point-to-plane noise std",
                      R::GreaterThan(0));
-  options->AddInt(
-      "Lio.max_iterations", &lio->max_iterations, "IEKF iterations per scan", R::AtLeast(1));
-  options->AddDouble("Lio.convergence_rotation",
-                     &lio->convergence_rotation,
-                     "rad, stop when the step is below this and convergence_translation",
-                     R::GreaterThan(0));
+  options->AddInt("Lio.max_iterations",
+                  &lio->max_iterations,
+                  "IEKF iterations per scan",
+                  R::AtLeast(1));
   options->AddDouble(
-      "Lio.convergence_translation", &lio->convergence_translation, "m", R::GreaterThan(0));
+      "Lio.convergence_rotation",
+      &lio->convergence_rotation,
+      "rad, stop when the step is below this and convergence_translation",
+      R::GreaterThan(0));
+  options->AddDouble("Lio.convergence_translation",
+                     &lio->convergence_translation,
+                     "m",
+                     R::GreaterThan(0));
   options->AddDouble("Lio.reassociate_translation",
                      &lio->reassociate_translation,
                      "m: after convergence, search neighbours again only if "
@@ -417,8 +429,10 @@ void AddLioOptions(OptionManager* options, LioOptions* lio) {
                      "which a direction is "
                      "weak",
                      R::AtLeast(0));
-  options->AddDouble(
-      "Lio.keyframe_distance", &lio->keyframe_distance, "m between keyframes", R::GreaterThan(0));
+  options->AddDouble("Lio.keyframe_distance",
+                     &lio->keyframe_distance,
+                     "m between keyframes",
+                     R::GreaterThan(0));
   options->AddDouble("Lio.keyframe_angle_deg",
                      &lio->keyframe_angle_deg,
                      "deg between keyframes",
@@ -453,13 +467,19 @@ void AddLioOptions(OptionManager* options, LioOptions* lio) {
 }
 
 void AddVoxelMapOptions(OptionManager* options, VoxelMapOptions* map) {
-  options->AddDouble(
-      "Map.voxel_size", &map->voxel_size, "m, iVox hash voxel edge", R::GreaterThan(0));
-  options->AddDouble(
-      "Map.resolution", &map->resolution, "m, min spacing of map points", R::AtLeast(0));
+  options->AddDouble("Map.voxel_size",
+                     &map->voxel_size,
+                     "m, iVox hash voxel edge",
+                     R::GreaterThan(0));
+  options->AddDouble("Map.resolution",
+                     &map->resolution,
+                     "m, min spacing of map points",
+                     R::AtLeast(0));
   options->RequireLess("Map.resolution", "Map.voxel_size");
-  options->AddInt(
-      "Map.max_points_per_voxel", &map->max_points_per_voxel, "points per voxel", R::AtLeast(1));
+  options->AddInt("Map.max_points_per_voxel",
+                  &map->max_points_per_voxel,
+                  "points per voxel",
+                  R::AtLeast(1));
   options->AddUint64("Map.max_voxels",
                      &map->max_voxels,
                      "voxels kept (least recently used dropped first)",
@@ -467,7 +487,8 @@ void AddVoxelMapOptions(OptionManager* options, VoxelMapOptions* map) {
   options->AddStructCheck([map] { return map->Check(); });
 }
 
-void AddImuInitializerOptions(OptionManager* options, ImuInitializerOptions* init) {
+void AddImuInitializerOptions(OptionManager* options,
+                              ImuInitializerOptions* init) {
   options->AddDouble("Init.min_duration_s",
                      &init->min_duration_s,
                      "s of stationary IMU data for the initialisation",
@@ -484,8 +505,10 @@ void AddImuInitializerOptions(OptionManager* options, ImuInitializerOptions* ini
                      &init->max_accel_std,
                      "m/s^2: above this the IMU is not static",
                      R::GreaterThan(0));
-  options->AddDouble(
-      "Init.gravity_magnitude", &init->gravity_magnitude, "m/s^2", R::GreaterThan(0));
+  options->AddDouble("Init.gravity_magnitude",
+                     &init->gravity_magnitude,
+                     "m/s^2",
+                     R::GreaterThan(0));
   options->AddStructCheck([init] { return init->Check(); });
 }
 
@@ -525,160 +548,122 @@ void AddPoseGraphOptions(OptionManager* options, G2oOptimizationOptions* pose_gr
 
 void AddPoseSlamOptions(OptionManager* options, PoseSlamOptions* pose_slam) {
   PoseSlamOptions* o = pose_slam;
-  options->AddInt(
-      "PoseSlam.knn", &o->knn, "candidate pairs: nearest keyframes by position", R::AtLeast(1));
-  options->AddInt("PoseSlam.min_index_step",
-                  &o->min_index_step,
-                  "candidate pairs: smallest keyframe index difference",
+  options->AddInt("PoseSlam.knn", &o->knn, "candidate pairs: nearest keyframes by position",
                   R::AtLeast(1));
-  options->AddInt("PoseSlam.max_index_step",
-                  &o->max_index_step,
-                  "candidate pairs: largest keyframe index difference",
-                  R::AtLeast(1));
-  options->AddBool("PoseSlam.use_icp_pairs",
-                   &o->use_icp_pairs,
+  options->AddInt("PoseSlam.min_index_step", &o->min_index_step,
+                  "candidate pairs: smallest keyframe index difference", R::AtLeast(1));
+  options->AddInt("PoseSlam.max_index_step", &o->max_index_step,
+                  "candidate pairs: largest keyframe index difference", R::AtLeast(1));
+  options->AddBool("PoseSlam.use_icp_pairs", &o->use_icp_pairs,
                    "Bayesian ICP factors between the candidate pairs");
-  options->AddBool(
-      "PoseSlam.use_imu", &o->use_imu, "IMU preintegration factors with velocities and biases");
-  options->AddBool("PoseSlam.piecewise_bias",
-                   &o->piecewise_bias,
+  options->AddBool("PoseSlam.use_imu", &o->use_imu,
+                   "IMU preintegration factors with velocities and biases");
+  options->AddBool("PoseSlam.piecewise_bias", &o->piecewise_bias,
                    "a new bias variable at each rest (0: one bias for the recording)");
-  options->AddBool("PoseSlam.use_zero_velocity",
-                   &o->use_zero_velocity,
+  options->AddBool("PoseSlam.use_zero_velocity", &o->use_zero_velocity,
                    "zero-velocity and identity-pose factors at rests");
-  options->AddDouble("PoseSlam.source_voxel_size",
-                     &o->source_voxel_size,
-                     "m, source cloud downsampling of the pair registration",
-                     R::GreaterThan(0));
-  options->AddDouble("PoseSlam.target_voxel_size",
-                     &o->target_voxel_size,
-                     "m, target cloud downsampling of the pair registration",
-                     R::GreaterThan(0));
-  options->AddDouble("PoseSlam.max_translation_difference",
-                     &o->max_translation_difference,
-                     "m, reject an ICP pair farther from lio's relative pose",
-                     R::GreaterThan(0));
-  options->AddDouble("PoseSlam.max_rotation_difference_deg",
-                     &o->max_rotation_difference_deg,
+  options->AddDouble("PoseSlam.source_voxel_size", &o->source_voxel_size,
+                     "m, source cloud downsampling of the pair registration", R::GreaterThan(0));
+  options->AddDouble("PoseSlam.target_voxel_size", &o->target_voxel_size,
+                     "m, target cloud downsampling of the pair registration", R::GreaterThan(0));
+  options->AddDouble("PoseSlam.max_translation_difference", &o->max_translation_difference,
+                     "m, reject an ICP pair farther from lio's relative pose", R::GreaterThan(0));
+  options->AddDouble("PoseSlam.max_rotation_difference_deg", &o->max_rotation_difference_deg,
                      "deg, reject an ICP pair farther from lio's relative pose",
                      R::GreaterThan(0));
-  options->AddChoice("PoseSlam.icp_loss",
-                     &o->icp_loss.kernel,
-                     {"none", "huber", "cauchy"},
+  options->AddChoice("PoseSlam.icp_loss", &o->icp_loss.kernel, {"none", "huber", "cauchy"},
                      "robust loss on the ICP factors");
-  options->AddDouble("PoseSlam.icp_loss_scale",
-                     &o->icp_loss.scale,
-                     "residual norm (sigmas) where the ICP loss bends",
-                     R::GreaterThan(0));
-  options->AddDouble("PoseSlam.outlier_chi2",
-                     &o->outlier_chi2,
+  options->AddDouble("PoseSlam.icp_loss_scale", &o->icp_loss.scale,
+                     "residual norm (sigmas) where the ICP loss bends", R::GreaterThan(0));
+  options->AddDouble("PoseSlam.outlier_chi2", &o->outlier_chi2,
                      "second pass without ICP factors whose squared normalised residual "
                      "exceeds this",
                      R::GreaterThan(0));
-  options->AddDouble("PoseSlam.odometry_sigma_rotation_deg",
-                     &o->odometry_sigma_rotation_deg,
+  options->AddDouble("PoseSlam.odometry_sigma_rotation_deg", &o->odometry_sigma_rotation_deg,
                      "deg, 1-sigma of lio's relative rotation between consecutive keyframes "
                      "(floor)",
                      R::GreaterThan(0));
   options->AddDouble("PoseSlam.odometry_sigma_rotation_deg_per_m",
                      &o->odometry_sigma_rotation_deg_per_m,
-                     "deg per m travelled, added to the odometry rotation sigma",
-                     R::AtLeast(0));
-  options->AddDouble("PoseSlam.odometry_sigma_translation",
-                     &o->odometry_sigma_translation,
+                     "deg per m travelled, added to the odometry rotation sigma", R::AtLeast(0));
+  options->AddDouble("PoseSlam.odometry_sigma_translation", &o->odometry_sigma_translation,
                      "m, 1-sigma of lio's relative translation between consecutive keyframes "
                      "(floor)",
                      R::GreaterThan(0));
   options->AddDouble("PoseSlam.odometry_sigma_translation_per_m",
                      &o->odometry_sigma_translation_per_m,
-                     "m per m travelled, added to the odometry translation sigma",
-                     R::AtLeast(0));
-  options->AddDouble("PoseSlam.imu_gyro_error",
-                     &o->imu_gyro_error,
+                     "m per m travelled, added to the odometry translation sigma", R::AtLeast(0));
+  options->AddDouble("PoseSlam.imu_gyro_error", &o->imu_gyro_error,
                      "unmodelled gyro error (scale, misalignment) as a fraction of the rotation "
                      "angle between keyframes",
                      R::AtLeast(0));
-  options->AddDouble("PoseSlam.imu_accel_error",
-                     &o->imu_accel_error,
+  options->AddDouble("PoseSlam.imu_accel_error", &o->imu_accel_error,
                      "unmodelled accelerometer error as a fraction of the integrated specific "
                      "force between keyframes",
                      R::AtLeast(0));
-  options->AddDouble("PoseSlam.bias_instability_gyro",
-                     &o->bias_instability_gyro,
+  options->AddDouble("PoseSlam.bias_instability_gyro", &o->bias_instability_gyro,
                      "rad/s, 1-sigma departure of the gyro bias from its piecewise constant",
                      R::AtLeast(0));
-  options->AddDouble("PoseSlam.bias_instability_accel",
-                     &o->bias_instability_accel,
+  options->AddDouble("PoseSlam.bias_instability_accel", &o->bias_instability_accel,
                      "m/s^2, 1-sigma departure of the accelerometer bias from its piecewise "
                      "constant",
                      R::AtLeast(0));
-  options->AddDouble("PoseSlam.bias_prior_gyro",
-                     &o->bias_prior_gyro,
-                     "rad/s, 1-sigma prior of the first gyro bias around 0",
-                     R::GreaterThan(0));
-  options->AddDouble("PoseSlam.bias_prior_accel",
-                     &o->bias_prior_accel,
+  options->AddDouble("PoseSlam.bias_prior_gyro", &o->bias_prior_gyro,
+                     "rad/s, 1-sigma prior of the first gyro bias around 0", R::GreaterThan(0));
+  options->AddDouble("PoseSlam.bias_prior_accel", &o->bias_prior_accel,
                      "m/s^2, 1-sigma prior of the first accelerometer bias around 0",
                      R::GreaterThan(0));
-  options->AddDouble(
-      "PoseSlam.gravity", &o->gravity, "m/s^2, along -z of lio's world frame", R::GreaterThan(0));
-  options->AddDouble("PoseSlam.max_imu_gap",
-                     &o->preintegration.max_sample_gap_s,
+  options->AddDouble("PoseSlam.gravity", &o->gravity, "m/s^2, along -z of lio's world frame",
+                     R::GreaterThan(0));
+  options->AddDouble("PoseSlam.max_imu_gap", &o->preintegration.max_sample_gap_s,
                      "s, a longer gap between IMU samples between keyframes is an error",
                      R::GreaterThan(0));
   StationaryDetectionOptions* s = &o->stationary;
-  options->AddDouble(
-      "Stationary.window", &s->window_s, "s, sliding test window", R::GreaterThan(0));
-  options->AddDouble("Stationary.max_gyro_std",
-                     &s->max_gyro_std,
-                     "rad/s, gyro scatter in a still window",
+  options->AddDouble("Stationary.window", &s->window_s, "s, sliding test window",
                      R::GreaterThan(0));
-  options->AddDouble("Stationary.max_accel_std",
-                     &s->max_accel_std,
-                     "m/s^2, accelerometer scatter in a still window",
-                     R::GreaterThan(0));
-  options->AddDouble("Stationary.max_gyro_mean",
-                     &s->max_gyro_mean,
-                     "rad/s, norm of a still window's mean rate",
-                     R::GreaterThan(0));
-  options->AddDouble("Stationary.min_duration",
-                     &s->min_duration_s,
-                     "s, shorter still stretches are not rests",
-                     R::GreaterThan(0));
+  options->AddDouble("Stationary.max_gyro_std", &s->max_gyro_std,
+                     "rad/s, gyro scatter in a still window", R::GreaterThan(0));
+  options->AddDouble("Stationary.max_accel_std", &s->max_accel_std,
+                     "m/s^2, accelerometer scatter in a still window", R::GreaterThan(0));
+  options->AddDouble("Stationary.max_gyro_mean", &s->max_gyro_mean,
+                     "rad/s, norm of a still window's mean rate", R::GreaterThan(0));
+  options->AddDouble("Stationary.min_duration", &s->min_duration_s,
+                     "s, shorter still stretches are not rests", R::GreaterThan(0));
   ZeroVelocityOptions* z = &o->zero_velocity;
-  options->AddDouble("ZeroVelocity.velocity_sigma",
-                     &z->velocity_sigma,
-                     "m/s, 1-sigma of a velocity at rest",
-                     R::GreaterThan(0));
-  options->AddDouble("ZeroVelocity.rotation_sigma",
-                     &z->rotation_sigma,
+  options->AddDouble("ZeroVelocity.velocity_sigma", &z->velocity_sigma,
+                     "m/s, 1-sigma of a velocity at rest", R::GreaterThan(0));
+  options->AddDouble("ZeroVelocity.rotation_sigma", &z->rotation_sigma,
                      "rad, 1-sigma of the rotation between two nodes of one rest",
                      R::GreaterThan(0));
-  options->AddDouble("ZeroVelocity.translation_sigma",
-                     &z->translation_sigma,
+  options->AddDouble("ZeroVelocity.translation_sigma", &z->translation_sigma,
                      "m, 1-sigma of the translation between two nodes of one rest",
                      R::GreaterThan(0));
-  options->AddInt("num_threads", &o->num_threads, "threads (-1 = all cores)", R::AtLeast(1).Or(-1));
+  options->AddInt("num_threads", &o->num_threads, "threads (-1 = all cores)",
+                  R::AtLeast(1).Or(-1));
   AddBayesianIcpOptions(options, &o->bayesian);
   AddPoseGraphSolverOptions(options, &o->solver);
   options->AddStructCheck([o] { return o->Check(); });
 }
 
-void AddTrajectoryEvaluationOptions(OptionManager* options, TrajectoryEvaluationOptions* eval) {
+void AddTrajectoryEvaluationOptions(OptionManager* options,
+                                    TrajectoryEvaluationOptions* eval) {
   options->AddEnum(
       "alignment",
       &eval->alignment,
-      AlignmentChoices({AlignmentType::kSE3, AlignmentType::kSim3, AlignmentType::kNone}),
+      AlignmentChoices(
+          {AlignmentType::kSE3, AlignmentType::kSim3, AlignmentType::kNone}),
       "alignment of the estimate to the reference");
   options->AddAlias("align", "alignment");
   options->AddStructCheck([eval] { return eval->Check(); });
 }
 
-void AddSfmEvaluationOptions(OptionManager* options, colmap::SfmEvaluationOptions* eval) {
+void AddSfmEvaluationOptions(OptionManager* options,
+                             colmap::SfmEvaluationOptions* eval) {
   options->AddEnum(
       "alignment",
       &eval->alignment,
-      AlignmentChoices({AlignmentType::kSim3, AlignmentType::kSE3, AlignmentType::kNone}),
+      AlignmentChoices(
+          {AlignmentType::kSim3, AlignmentType::kSE3, AlignmentType::kNone}),
       "alignment of the estimated camera centres to the reference (se3 for "
       "metric "
       "models)");
@@ -692,8 +677,10 @@ void AddWalkingOptions(OptionManager* options, sim::WalkingOptions* walk) {
                   "survey (controlpoints.txt): at the start, at the end and at "
                   "equal time steps between (3: start, middle, end)",
                   R::Between(2, 1000));
-  options->AddDouble(
-      "Walk.speed", &walk->speed, "mean speed of a generated walk (m/s)", R::GreaterThan(0));
+  options->AddDouble("Walk.speed",
+                     &walk->speed,
+                     "mean speed of a generated walk (m/s)",
+                     R::GreaterThan(0));
   options->AddDouble("Walk.stationary_s",
                      &walk->stationary_s,
                      "length of each rest of a generated walk (s; at most "
@@ -703,48 +690,64 @@ void AddWalkingOptions(OptionManager* options, sim::WalkingOptions* walk) {
 }
 
 void AddDynamicsOptions(OptionManager* options, sim::DynamicsOptions* dynamics) {
-  options->AddDouble("Dynamics.people_per_100m",
-                     &dynamics->people_per_100m,
-                     "error source dynamics: people walking the scene's route, per 100 m of "
-                     "it (no published figure; HILTI 2022 names people moving among the "
-                     "difficulties of its construction sequences; 0 = none)",
-                     R::Between(0, 100));
-  options->AddDouble("Dynamics.speed",
-                     &dynamics->speed,
-                     "mean walking speed of the people, m/s, each +-15 % (comfortable gait "
-                     "speed of adults 1.27-1.46 m/s, Bohannon 1997)",
-                     R::GreaterThan(0).AndAtMost(3));
+  options->AddDouble(
+      "Dynamics.people_per_100m",
+      &dynamics->people_per_100m,
+      "error source dynamics: people walking the scene's route, per 100 m of "
+      "it (no published figure; HILTI 2022 names people moving among the "
+      "difficulties of its construction sequences; 0 = none)",
+      R::Between(0, 100));
+  options->AddDouble(
+      "Dynamics.speed",
+      &dynamics->speed,
+      "mean walking speed of the people, m/s, each +-15 % (comfortable gait "
+      "speed of adults 1.27-1.46 m/s, Bohannon 1997)",
+      R::GreaterThan(0).AndAtMost(3));
   options->AddStructCheck([dynamics] { return dynamics->Check(); });
 }
 
 void AddSimulatorOptions(OptionManager* options, sim::SimulatorOptions* sim) {
   options->AddString(
-      "scene", &sim->scene, "office | staircase | hall | site, or a configs/sim_*.yaml scene file");
-  options->AddString("trajectory_path",
-                     &sim->trajectory_path,
-                     "TUM file of real motion (world_from_imu) to follow instead of walking");
+      "scene",
+      &sim->scene,
+      "office | staircase | hall | site, or a configs/sim_*.yaml scene file");
+  options->AddString(
+      "trajectory_path",
+      &sim->trajectory_path,
+      "TUM file of real motion (world_from_imu) to follow instead of walking");
   options->AddDouble("duration",
                      &sim->duration,
                      "sequence length in s, > 0.5 (with --trajectory_path: at "
                      "most the file's, "
                      "<= 0 all)",
                      R::AtMost(1e5));
-  options->AddDouble(
-      "camera_rate", &sim->camera_rate, "rig frames per second (0: none)", R::Between(0, 100));
-  options->AddString("lidars", &sim->lidars, "comma list: spinning, livox (or none)");
-  options->AddDouble("noise_scale",
-                     &sim->noise_scale,
-                     "multiplies all sensor noise and biases (0: exact measurements)",
+  options->AddDouble("camera_rate",
+                     &sim->camera_rate,
+                     "rig frames per second (0: none)",
                      R::Between(0, 100));
-  options->AddInt("seed", &sim->seed, "seed of scene, texture, motion and noise");
-  options->AddRequiredString("output_path", &sim->output_path, "sequence folder to create");
+  options->AddString(
+      "lidars", &sim->lidars, "comma list: spinning, livox (or none)");
+  options->AddDouble(
+      "noise_scale",
+      &sim->noise_scale,
+      "multiplies all sensor noise and biases (0: exact measurements)",
+      R::Between(0, 100));
   options->AddInt(
-      "supersampling", &sim->supersampling, "camera rays per pixel = n x n", R::Between(1, 8));
+      "seed", &sim->seed, "seed of scene, texture, motion and noise");
+  options->AddRequiredString(
+      "output_path", &sim->output_path, "sequence folder to create");
+  options->AddInt("supersampling",
+                  &sim->supersampling,
+                  "camera rays per pixel = n x n",
+                  R::Between(1, 8));
   options->AddBool("color", &sim->color, "colour images instead of grayscale");
   options->AddBool("rgbd", &sim->rgbd, "add an RGB-D camera (rgbd0/, 640x480)");
-  options->AddDouble(
-      "rgbd_rate", &sim->rgbd_rate, "RGB-D frames per second", R::GreaterThan(0).AndAtMost(100));
-  options->AddBool("overwrite", &sim->overwrite, "replace an existing output folder");
+  options->AddDouble("rgbd_rate",
+                     &sim->rgbd_rate,
+                     "RGB-D frames per second",
+                     R::GreaterThan(0).AndAtMost(100));
+  options->AddBool(
+      "overwrite", &sim->overwrite, "replace an existing output folder");
   options->AddString("error_sources",
                      &sim->error_sources,
                      "error sources beyond white noise and bias random walk, each sized by "
@@ -925,8 +928,9 @@ void AddCameraErrorOptions(OptionManager* options, sim::CameraErrorOptions* erro
                      "exposure at gain 1 that renders radiance 0.5 (albedo x shading x "
                      "light) at 128 DN, ms: the scene's brightness",
                      R::GreaterThan(0));
-  options->AddBool(
-      "CameraErrors.shot_noise", &errors->shot_noise, "Poisson noise of the collected electrons");
+  options->AddBool("CameraErrors.shot_noise",
+                   &errors->shot_noise,
+                   "Poisson noise of the collected electrons");
   options->AddDouble("CameraErrors.full_well_e",
                      &errors->full_well_e,
                      "electrons at 255 DN and gain 1 (Sony IMX287, the Alphasense Core "
@@ -969,16 +973,18 @@ void AddMaterialOptions(OptionManager* options, sim::MaterialOptions* materials)
                      R::Between(0, 1));
 }
 
-void AddGlobalMapperOptions(OptionManager* options, colmap::GlobalMapperOptions* mapper) {
+void AddGlobalMapperOptions(OptionManager* options,
+                            colmap::GlobalMapperOptions* mapper) {
   options->AddInt("Mapper.num_refinement_rounds",
                   &mapper->num_refinement_rounds,
                   "rounds of bundle adjustment -> filter -> retriangulate "
                   "before the final BA",
                   R::AtLeast(0));
-  options->AddDouble("Mapper.refinement_function_tolerance",
-                     &mapper->refinement_function_tolerance,
-                     "relative cost change that ends a refinement round's bundle adjustment",
-                     R::AtLeast(0));
+  options->AddDouble(
+      "Mapper.refinement_function_tolerance",
+      &mapper->refinement_function_tolerance,
+      "relative cost change that ends a refinement round's bundle adjustment",
+      R::AtLeast(0));
   options->AddBool("Mapper.final_full_bundle_adjustment",
                    &mapper->final_full_bundle_adjustment,
                    "the final bundle adjustment uses every point");
@@ -997,25 +1003,29 @@ void AddGlobalMapperOptions(OptionManager* options, colmap::GlobalMapperOptions*
                   &mapper->min_frame_observations,
                   "frames seeing fewer triangulated points are dropped",
                   R::AtLeast(0));
-  options->AddDouble("Mapper.lidar_constraint_tolerance_ms",
-                     &mapper->lidar_constraint_tolerance_ms,
-                     "ms, constraint stamps attach to frames within this tolerance",
-                     R::AtLeast(0));
-  options->AddBool(
-      "Mapper.read_colors", &mapper->read_colors, "read point colours from the images");
+  options->AddDouble(
+      "Mapper.lidar_constraint_tolerance_ms",
+      &mapper->lidar_constraint_tolerance_ms,
+      "ms, constraint stamps attach to frames within this tolerance",
+      R::AtLeast(0));
+  options->AddBool("Mapper.read_colors",
+                   &mapper->read_colors,
+                   "read point colours from the images");
   options->AddBool("Mapper.skip_rotation_averaging",
                    &mapper->skip_rotation_averaging,
                    "no rotation averaging: frames take their prior rotations "
                    "(frames without "
                    "one are dropped)");
-  options->AddBool("Mapper.skip_translation_averaging",
-                   &mapper->skip_translation_averaging,
-                   "no translation averaging: frames take their prior positions (frames "
-                   "without one are dropped)");
-  options->AddBool("Mapper.skip_bundle_adjustment",
-                   &mapper->skip_bundle_adjustment,
-                   "no bundle adjustment (refinement rounds and final); tracks are still "
-                   "filtered");
+  options->AddBool(
+      "Mapper.skip_translation_averaging",
+      &mapper->skip_translation_averaging,
+      "no translation averaging: frames take their prior positions (frames "
+      "without one are dropped)");
+  options->AddBool(
+      "Mapper.skip_bundle_adjustment",
+      &mapper->skip_bundle_adjustment,
+      "no bundle adjustment (refinement rounds and final); tracks are still "
+      "filtered");
   options->AddBool("Mapper.skip_retriangulation",
                    &mapper->skip_retriangulation,
                    "no retriangulation in the refinement rounds");
@@ -1029,13 +1039,16 @@ void AddGlobalMapperOptions(OptionManager* options, colmap::GlobalMapperOptions*
   options->AddStructCheck([mapper] { return mapper->Check(); });
 }
 
-void AddLoadMapperStateOptions(OptionManager* options, colmap::LoadMapperStateOptions* load) {
-  options->AddBool("Priors.use_priors", &load->use_priors, "use the database's pose priors");
+void AddLoadMapperStateOptions(OptionManager* options,
+                               colmap::LoadMapperStateOptions* load) {
+  options->AddBool(
+      "Priors.use_priors", &load->use_priors, "use the database's pose priors");
   options->AddAlias("Priors.use", "Priors.use_priors");
-  options->AddDouble("Priors.prior_position_sigma",
-                     &load->prior_position_sigma,
-                     "m, prior position std where the database has no covariance",
-                     R::GreaterThan(0));
+  options->AddDouble(
+      "Priors.prior_position_sigma",
+      &load->prior_position_sigma,
+      "m, prior position std where the database has no covariance",
+      R::GreaterThan(0));
   options->AddAlias("Priors.position_sigma", "Priors.prior_position_sigma");
   options->AddDouble("Priors.prior_rotation_sigma",
                      &load->prior_rotation_sigma,
@@ -1045,7 +1058,8 @@ void AddLoadMapperStateOptions(OptionManager* options, colmap::LoadMapperStateOp
   options->AddStructCheck([load] { return load->Check(); });
 }
 
-void AddViewGraphOptions(OptionManager* options, colmap::ViewGraphOptions* view_graph) {
+void AddViewGraphOptions(OptionManager* options,
+                         colmap::ViewGraphOptions* view_graph) {
   options->AddInt("ViewGraph.min_num_inliers",
                   &view_graph->min_num_inliers,
                   "pairs with fewer inlier matches are ignored",
@@ -1058,12 +1072,14 @@ void AddViewGraphOptions(OptionManager* options, colmap::ViewGraphOptions* view_
                      &view_graph->max_error_px,
                      "px, RANSAC threshold of the relative pose re-estimation",
                      R::GreaterThan(0));
-  options->AddBool("ViewGraph.reestimate_relative_poses",
-                   &view_graph->reestimate_relative_poses,
-                   "re-estimate relative poses (5-point RANSAC) from the inlier matches");
-  options->AddBool("ViewGraph.use_database_essential",
-                   &view_graph->use_database_essential,
-                   "CALIBRATED pairs: start from the database's E instead of a new RANSAC");
+  options->AddBool(
+      "ViewGraph.reestimate_relative_poses",
+      &view_graph->reestimate_relative_poses,
+      "re-estimate relative poses (5-point RANSAC) from the inlier matches");
+  options->AddBool(
+      "ViewGraph.use_database_essential",
+      &view_graph->use_database_essential,
+      "CALIBRATED pairs: start from the database's E instead of a new RANSAC");
   options->AddDouble("ViewGraph.ransac_confidence",
                      &view_graph->ransac_confidence,
                      "RANSAC success probability",
@@ -1086,21 +1102,24 @@ void AddViewGraphOptions(OptionManager* options, colmap::ViewGraphOptions* view_
   options->AddStructCheck([view_graph] { return view_graph->Check(); });
 }
 
-void AddRotationAveragingOptions(OptionManager* options,
-                                 colmap::RotationAveragingOptions* rotation_averaging) {
+void AddRotationAveragingOptions(
+    OptionManager* options,
+    colmap::RotationAveragingOptions* rotation_averaging) {
   colmap::RotationAveragingOptions* ra = rotation_averaging;
-  options->AddDouble("RotationAveraging.max_rotation_error_deg",
-                     &ra->max_rotation_error_deg,
-                     "deg, edges with a larger residual are removed and the average re-run",
-                     R::GreaterThan(0));
+  options->AddDouble(
+      "RotationAveraging.max_rotation_error_deg",
+      &ra->max_rotation_error_deg,
+      "deg, edges with a larger residual are removed and the average re-run",
+      R::GreaterThan(0));
   options->AddDouble("RotationAveraging.geman_mcclure_sigma_deg",
                      &ra->geman_mcclure_sigma_deg,
                      "deg, robust loss scale",
                      R::GreaterThan(0));
-  options->AddDouble("RotationAveraging.max_loop_error_deg",
-                     &ra->max_loop_error_deg,
-                     "deg, a triangle of relative rotations closing within this is consistent",
-                     R::GreaterThan(0));
+  options->AddDouble(
+      "RotationAveraging.max_loop_error_deg",
+      &ra->max_loop_error_deg,
+      "deg, a triangle of relative rotations closing within this is consistent",
+      R::GreaterThan(0));
   options->AddInt("RotationAveraging.max_l1_iterations",
                   &ra->max_l1_iterations,
                   "L1 IRLS iterations before Geman-McClure (0 = none)",
@@ -1131,14 +1150,16 @@ void AddRotationAveragingOptions(OptionManager* options,
   options->AddBool("RotationAveraging.use_lidar_constraints",
                    &ra->use_lidar_constraints,
                    "LiDAR relative rotations as measurements");
-  options->AddBool("RotationAveraging.weight_by_num_inliers",
-                   &ra->weight_by_num_inliers,
-                   "scale edge information by the edge's inliers / mean inliers");
+  options->AddBool(
+      "RotationAveraging.weight_by_num_inliers",
+      &ra->weight_by_num_inliers,
+      "scale edge information by the edge's inliers / mean inliers");
   options->AddStructCheck([ra] { return ra->Check(); });
 }
 
-void AddTranslationAveragingOptions(OptionManager* options,
-                                    colmap::TranslationAveragingOptions* translation_averaging) {
+void AddTranslationAveragingOptions(
+    OptionManager* options,
+    colmap::TranslationAveragingOptions* translation_averaging) {
   colmap::TranslationAveragingOptions* ta = translation_averaging;
   options->AddBool("TranslationAveraging.filter_1dsfm",
                    &ta->filter_1dsfm,
@@ -1151,15 +1172,17 @@ void AddTranslationAveragingOptions(OptionManager* options,
                      &ta->min_projection_magnitude,
                      "1dSfM: projections |d . axis| below this are left out",
                      R::AtLeast(0).AndLessThan(1));
-  options->AddDouble("TranslationAveraging.max_broken_ratio",
-                     &ta->max_broken_ratio,
-                     "1dSfM: edges inconsistent in more than this fraction of projections are "
-                     "removed",
-                     R::Between(0, 1));
-  options->AddDouble("TranslationAveraging.axis_perturbation_sigma",
-                     &ta->axis_perturbation_sigma,
-                     "1dSfM: std of the noise added to a sampled direction to form an axis",
-                     R::AtLeast(0));
+  options->AddDouble(
+      "TranslationAveraging.max_broken_ratio",
+      &ta->max_broken_ratio,
+      "1dSfM: edges inconsistent in more than this fraction of projections are "
+      "removed",
+      R::Between(0, 1));
+  options->AddDouble(
+      "TranslationAveraging.axis_perturbation_sigma",
+      &ta->axis_perturbation_sigma,
+      "1dSfM: std of the noise added to a sampled direction to form an axis",
+      R::AtLeast(0));
   options->AddDouble("TranslationAveraging.direction_sigma",
                      &ta->direction_sigma,
                      "rad, expected angular noise of an edge direction",
@@ -1176,8 +1199,9 @@ void AddTranslationAveragingOptions(OptionManager* options,
                      &ta->min_edge_scale,
                      "lower bound of the per-edge scales",
                      R::GreaterThan(0));
-  options->AddBool(
-      "TranslationAveraging.use_priors", &ta->use_priors, "use the frames' position priors");
+  options->AddBool("TranslationAveraging.use_priors",
+                   &ta->use_priors,
+                   "use the frames' position priors");
   options->AddBool("TranslationAveraging.use_lidar_constraints",
                    &ta->use_lidar_constraints,
                    "use the LiDAR relative translations");
@@ -1226,15 +1250,17 @@ void AddTrackOptions(OptionManager* options, colmap::TrackOptions* tracks) {
   options->AddStructCheck([tracks] { return tracks->Check(); });
 }
 
-void AddTriangulationOptions(OptionManager* options, colmap::TriangulationOptions* triangulation) {
+void AddTriangulationOptions(OptionManager* options,
+                             colmap::TriangulationOptions* triangulation) {
   options->AddDouble("Triangulation.max_reprojection_error_px",
                      &triangulation->max_reprojection_error_px,
                      "px, observations with a larger error are rejected",
                      R::GreaterThan(0));
-  options->AddDouble("Triangulation.min_triangulation_angle_deg",
-                     &triangulation->min_triangulation_angle_deg,
-                     "deg, points with a smaller maximum triangulation angle are dropped",
-                     R::AtLeast(0).AndLessThan(180));
+  options->AddDouble(
+      "Triangulation.min_triangulation_angle_deg",
+      &triangulation->min_triangulation_angle_deg,
+      "deg, points with a smaller maximum triangulation angle are dropped",
+      R::AtLeast(0).AndLessThan(180));
   options->AddInt("Triangulation.num_refinement_iterations",
                   &triangulation->num_refinement_iterations,
                   "Levenberg-Marquardt iterations on the reprojection error",
@@ -1246,11 +1272,13 @@ void AddTriangulationOptions(OptionManager* options, colmap::TriangulationOption
   options->AddStructCheck([triangulation] { return triangulation->Check(); });
 }
 
-void AddBundleAdjustmentOptions(OptionManager* options,
-                                colmap::BundleAdjustmentOptions* bundle_adjustment) {
+void AddBundleAdjustmentOptions(
+    OptionManager* options,
+    colmap::BundleAdjustmentOptions* bundle_adjustment) {
   colmap::BundleAdjustmentOptions* ba = bundle_adjustment;
-  options->AddBool(
-      "BundleAdjustment.refine_focal_length", &ba->refine_focal_length, "refine focal lengths");
+  options->AddBool("BundleAdjustment.refine_focal_length",
+                   &ba->refine_focal_length,
+                   "refine focal lengths");
   options->AddBool("BundleAdjustment.refine_principal_point",
                    &ba->refine_principal_point,
                    "refine principal points");
@@ -1263,8 +1291,9 @@ void AddBundleAdjustmentOptions(OptionManager* options,
   options->AddBool("BundleAdjustment.refine_frame_poses",
                    &ba->refine_frame_poses,
                    "refine the frame poses (0: structure only)");
-  options->AddBool(
-      "BundleAdjustment.use_priors", &ba->use_priors, "frame position / rotation prior residuals");
+  options->AddBool("BundleAdjustment.use_priors",
+                   &ba->use_priors,
+                   "frame position / rotation prior residuals");
   options->AddBool("BundleAdjustment.use_lidar_constraints",
                    &ba->use_lidar_constraints,
                    "LiDAR relative pose residuals");
@@ -1276,11 +1305,12 @@ void AddBundleAdjustmentOptions(OptionManager* options,
                      &ba->loss_scale,
                      "px, scale of the robust loss",
                      R::GreaterThan(0));
-  options->AddInt("BundleAdjustment.max_tracks_per_image",
-                  &ba->max_tracks_per_image,
-                  "adjust only each image's best N tracks (0 = all); the others are "
-                  "re-triangulated after each adjustment",
-                  R::AtLeast(0));
+  options->AddInt(
+      "BundleAdjustment.max_tracks_per_image",
+      &ba->max_tracks_per_image,
+      "adjust only each image's best N tracks (0 = all); the others are "
+      "re-triangulated after each adjustment",
+      R::AtLeast(0));
   options->AddDouble("BundleAdjustment.function_tolerance",
                      &ba->function_tolerance,
                      "relative cost change that stops the adjustment",
@@ -1301,11 +1331,12 @@ void AddBundleAdjustmentOptions(OptionManager* options,
                   &ba->dense_schur_max_frames,
                   "up to this many frames: the dense-Schur solvers",
                   R::AtLeast(0));
-  options->AddChoice("BundleAdjustment.solver",
-                     &ba->solver,
-                     {"auto", "ceres", "schur"},
-                     "auto: lisfm's dense-Schur LM up to dense_schur_max_frames frames (no "
-                     "cam_from_rig refinement), Ceres otherwise");
+  options->AddChoice(
+      "BundleAdjustment.solver",
+      &ba->solver,
+      {"auto", "ceres", "schur"},
+      "auto: lisfm's dense-Schur LM up to dense_schur_max_frames frames (no "
+      "cam_from_rig refinement), Ceres otherwise");
   options->AddStructCheck([ba] { return ba->Check(); });
 }
 
