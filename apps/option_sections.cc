@@ -39,9 +39,10 @@ void AddDatabaseImporterOptions(OptionManager* options, DatabaseImporterOptions*
   options->AddDouble("DatabaseImporter.max_point_range_m", &c->max_point_range_m,
                      "m, map co-visibility: farthest map point an image counts (0 = no limit)",
                      R::AtLeast(0));
-  options->AddChoice("DatabaseImporter.score", &c->score, {"count", "fraction"},
-                     "ranking score of a co-visible pair: its votes, or (map) its votes over "
-                     "the smaller number of map points the two images see");
+  options->AddChoice("DatabaseImporter.score", &c->score, {"count", "fraction", "area"},
+                     "ranking score of a co-visible pair (map): solid angle of the shared "
+                     "surface (sum of voxel^2 / (range_a range_b)), votes, or votes over the "
+                     "smaller number of map points the two images see");
   options->AddDouble("DatabaseImporter.scan_voxel_size_m", &c->scan_voxel_size_m,
                      "m, voxel downsampling of the projected points and z-buffers (0 = off)",
                      R::AtLeast(0));

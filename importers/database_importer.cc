@@ -32,7 +32,8 @@ namespace lisfm {
 
 bool CovisibilityOptions::Check() const {
   CHECK_OPTION_MSG(source, source == "map" || source == "constraints", "map or constraints");
-  CHECK_OPTION_MSG(score, score == "count" || score == "fraction", "count or fraction");
+  CHECK_OPTION_MSG(
+      score, score == "count" || score == "fraction" || score == "area", "count, fraction or area");
   CHECK_OPTION_GT(max_view_angle_deg, 0.0);
   CHECK_OPTION_LE(max_view_angle_deg, 180.0);
   CHECK_OPTION_GE(max_point_range_m, 0.0);
@@ -408,32 +409,51 @@ std::map<std::pair<int, int>, PairVotes> ComputeMapCovisibility(
   }
   // Votes of each image a with the images b > a.
   const double min_cos = std::cos(options.max_view_angle_deg * M_PI / 180.0);
-  std::vector<std::vector<std::pair<int, int64_t>>> counts(n);
+  // Per image a: (b, votes, solid-angle weight) for the images b > a.
+  struct Tally {
+    int b;
+    int64_t count;
+    double area;
+  };
+  const double voxel_sq =
+      options.scan_voxel_size_m > 0 ? options.scan_voxel_size_m * options.scan_voxel_size_m : 1.0;
+  std::vector<std::vector<Tally>> tallies(n);
   tbb::parallel_for(0, n, [&](int a) {
     std::vector<int64_t> count(n, 0);
+    std::vector<double> area(n, 0.0);
     const Vec3 ca = images[a].world_from_cam.translation();
     for (uint32_t k : visible[a]) {
       const Vec3 p = map[k].cast<double>();
-      const Vec3 ra = (p - ca).normalized();
+      const Vec3 da = p - ca;
+      const double range_a = da.norm();
+      const Vec3 ra = da / range_a;
       for (uint32_t e = row_start[k]; e < row_start[k + 1]; ++e) {
         const int b = seen_by[e];
         if (b <= a) continue;
-        const Vec3 rb = (p - images[b].world_from_cam.translation()).normalized();
-        if (ra.dot(rb) >= min_cos) ++count[b];
+        const Vec3 db = p - images[b].world_from_cam.translation();
+        const double range_b = db.norm();
+        if (ra.dot(db) < min_cos * range_b) continue;
+        ++count[b];
+        area[b] += voxel_sq / (range_a * range_b);
       }
     }
     for (int b = a + 1; b < n; ++b) {
-      if (count[b] > 0) counts[a].push_back({b, count[b]});
+      if (count[b] > 0) tallies[a].push_back({b, count[b], area[b]});
     }
   });
   std::map<std::pair<int, int>, PairVotes> result;
   for (int a = 0; a < n; ++a) {
-    for (const auto& [b, c] : counts[a]) {
-      PairVotes& v = result[{a, b}];
-      v.count = c;
-      const size_t seen = std::min(visible[a].size(), visible[b].size());
-      v.score = options.score == "fraction" ? static_cast<double>(c) / static_cast<double>(seen)
-                                            : static_cast<double>(c);
+    for (const Tally& t : tallies[a]) {
+      PairVotes& v = result[{a, t.b}];
+      v.count = t.count;
+      if (options.score == "fraction") {
+        const size_t seen = std::min(visible[a].size(), visible[t.b].size());
+        v.score = static_cast<double>(t.count) / static_cast<double>(seen);
+      } else if (options.score == "area") {
+        v.score = t.area;
+      } else {
+        v.score = static_cast<double>(t.count);
+      }
     }
   }
   return result;

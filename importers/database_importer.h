@@ -48,10 +48,10 @@
 // parallel (TBB); the votes are merged in scan-pair order, so the result does not depend on the
 // thread count. The importer adds every scan paired with itself (its images that see the same
 // points). Selection: pairs with >= min_count votes, each kept when it is among the
-// max_pairs_per_image best of either of its images by score (votes, or with score "fraction"
-// votes / min(points a sees, points b sees) in the map source); plus intra-rig pairs of
-// cameras whose fields of view overlap and num_temporal_neighbors successive
-// images per camera. Without constraints the co-visibility part is replaced by
+// max_pairs_per_image best of either of its images by score (CovisibilityOptions::score); plus
+// intra-rig pairs of cameras whose fields of view overlap and num_temporal_neighbors successive
+// images per camera. The images of one rig frame whose cameras' views do not overlap are listed
+// only when their votes select them. Without constraints the co-visibility part is replaced by
 // the fallback_num_neighbors nearest images by prior camera centre (viewing
 // directions within 90 degrees).
 //
@@ -94,9 +94,12 @@ struct CovisibilityOptions {
   double occlusion_tolerance_m = 0.15;   // m, depth margin of the visibility test
   double occlusion_tolerance_ratio = 0.05;  // relative depth margin of the visibility test
   int min_count = 10;                       // votes a pair needs to be listed
-  // Ranking score of a pair: "count" (votes) or "fraction" (votes / the smaller number of map
-  // points the two images see; map source only, else the votes).
-  std::string score = "count";
+  // Ranking score of a pair (map source; the constraints source always ranks by votes):
+  // "area" sum over the shared points of voxel^2 / (range_a range_b), the solid angle (sr) the
+  // shared surface covers in the two images (features spread over the image, not over the
+  // scene's square metres); "count" the votes; "fraction" the votes / the smaller number of map
+  // points the two images see.
+  std::string score = "area";
   int max_pairs_per_image = 25;    // best pairs kept per image (a pair stays when either keeps it)
   int num_temporal_neighbors = 1;  // successive images of the same camera paired with each image
   bool intra_rig_pairs = true;     // pair the cameras of one rig frame whose views overlap

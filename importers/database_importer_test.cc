@@ -158,7 +158,13 @@ TEST(MapCovisibility, WallSeenByFacingCamerasOnly) {
   EXPECT_GT(v.count, 1500);
   EXPECT_LE(v.count, 61 * 41);
   EXPECT_TRUE(v.voters.empty());
-  EXPECT_EQ(v.score, static_cast<double>(v.count));
+  // Area score: the wall's solid angle seen from ~5 m, at most its 6 x 4 m^2 / (5 m)^2.
+  EXPECT_GT(v.score, 0.5);
+  EXPECT_LT(v.score, 24.0 / 25.0);
+  CovisibilityOptions count;
+  count.score = "count";
+  EXPECT_EQ(ComputeMapCovisibility(c.rig, c.images, c.scans, count).begin()->second.score,
+            static_cast<double>(v.count));
   CovisibilityOptions fraction;
   fraction.score = "fraction";
   const auto f = ComputeMapCovisibility(c.rig, c.images, c.scans, fraction);
