@@ -63,7 +63,7 @@ REFMODEL=$LISFM_BUILD_DIR/importers/testing/lisfm_sim_reference_model
 for b in "$LISFM" "$REFMODEL"; do
   [ -x "$b" ] || { echo "error: $b not built (cmake --build $LISFM_BUILD_DIR --target lisfm lisfm_sim_reference_model)" >&2; exit 1; }
 done
-if ! "$LISFM" simulate -h | grep -q -- "--scene.*\b$SCENE\b"; then
+if ! "$LISFM" simulate -h | grep -- "--scene.*\b$SCENE\b" >/dev/null; then
   echo "note: scene '$SCENE' is not known to this lisfm simulate; using office instead" >&2
   SCENE=office
 fi
