@@ -24,9 +24,9 @@
 # --scene defaults to site; an unknown scene falls back to office with a note.
 # --importer_args: extra lisfm database_importer options. The features and the
 # exhaustive result are reused only while the importer's image list is the same.
-# --list_args (repeatable): one more importer run with these extra options
-# (after --importer_args), scored on its pairs.txt alone (a "list only" row:
-# pairs and recall, no matching).
+# --list_args (repeatable): one more importer run with these options (instead
+# of --importer_args: an option may be given once), scored on its pairs.txt
+# alone (a "list only" row: pairs and recall, no matching).
 set -euo pipefail
 source "$(dirname "${BASH_SOURCE[0]}")/common.sh"
 
@@ -203,7 +203,7 @@ mapper_row() {
 recall_of_list() {
   sqlite3 "$W/features.db" "select name, image_id from images" | tr '|' ' ' >"$W/ids.tmp"
   awk 'NR == FNR {id[$1] = $2; next}
-       {a = id[$1]; b = id[$2]; if (a > b) {t = a; a = b; b = t}; printf "%d\n", a * 2147483647 + b}' \
+       {a = id[$1]; b = id[$2]; if (a > b) {t = a; a = b; b = t}; printf "%.0f\n", a * 2147483647 + b}' \
     "$W/ids.tmp" "$1" | sort >"$W/matched.tmp"
   awk -v min="$2" '$2 >= min {print $1}' "$W/verified.txt" | sort >"$W/verified.tmp"
   local total hit
@@ -235,7 +235,7 @@ VER_STRONG=$(awk '$2 >= 100' "$W/verified.txt" | wc -l)
     rm -rf "$W/db_list$k"
     "$LISFM" database_importer --input_path "$W/seq" --pose_slam_path "$W/ps" --lio_path "$W/lio" \
       --output_path "$W/db_list$k" --DatabaseImporter.num_threads "$LISFM_JOBS" --quiet 1 \
-      $IMPORTER_ARGS $args 2>/dev/null
+      $args 2>"$W/db_list$k.log" || { echo "error: database_importer $args failed: $W/db_list$k.log" >&2; exit 1; }
     p=$(wc -l <"$W/db_list$k/pairs.txt")
     pct=$(echo "scale=1; 100 * $p / ${PAIRS_OF[exhaustive]}" | bc)
     printf "| ours, \`%s\` (list only) | %s | %s | – | %s | %s | – | – | – |\n" "$args" "$p" "$pct" \
