@@ -29,6 +29,20 @@ void AddDatabaseImporterOptions(OptionManager* options, DatabaseImporterOptions*
                      "m, a point of scan i is a co-visible point when scan j has a point "
                      "within this",
                      R::GreaterThan(0));
+  options->AddChoice("DatabaseImporter.covisibility_source", &c->source, {"map", "constraints"},
+                     "LiDAR co-visibility from every keyframe scan in one map (image pairs by "
+                     "shared visible map points), or from the constrained scan pairs only");
+  options->AddDouble("DatabaseImporter.max_view_angle_deg", &c->max_view_angle_deg,
+                     "deg, map co-visibility: largest angle between the two images' rays to a "
+                     "shared point",
+                     R::GreaterThan(0).AndAtMost(180));
+  options->AddDouble("DatabaseImporter.max_point_range_m", &c->max_point_range_m,
+                     "m, map co-visibility: farthest map point an image counts (0 = no limit)",
+                     R::AtLeast(0));
+  options->AddChoice("DatabaseImporter.score", &c->score, {"count", "fraction", "area"},
+                     "ranking score of a co-visible pair (map): solid angle of the shared "
+                     "surface (sum of voxel^2 / (range_a range_b)), votes, or votes over the "
+                     "smaller number of map points the two images see");
   options->AddDouble("DatabaseImporter.scan_voxel_size_m", &c->scan_voxel_size_m,
                      "m, voxel downsampling of the projected points and z-buffers (0 = off)",
                      R::AtLeast(0));

@@ -31,6 +31,12 @@
 namespace lisfm {
 
 bool CovisibilityOptions::Check() const {
+  CHECK_OPTION_MSG(source, source == "map" || source == "constraints", "map or constraints");
+  CHECK_OPTION_MSG(
+      score, score == "count" || score == "fraction" || score == "area", "count, fraction or area");
+  CHECK_OPTION_GT(max_view_angle_deg, 0.0);
+  CHECK_OPTION_LE(max_view_angle_deg, 180.0);
+  CHECK_OPTION_GE(max_point_range_m, 0.0);
   CHECK_OPTION_GT(max_point_distance_m, 0.0);
   CHECK_OPTION_GE(scan_voxel_size_m, 0.0);
   CHECK_OPTION_GT(max_image_time_offset_s, 0.0);
@@ -115,36 +121,71 @@ struct ZBuffer {
   }
 };
 
-ZBuffer BuildZBuffer(const CameraModel& model,
-                     const SE3& cam_from_world,
-                     const std::vector<Eigen::Vector3f>& points_in_world,
-                     int cell,
-                     double footprint_m) {
+// An empty z-buffer of `model`'s image.
+ZBuffer EmptyZBuffer(const CameraModel& model, int cell) {
   ZBuffer z;
   z.cell = cell;
   z.cols = (model.width + cell - 1) / cell;
   z.rows = (model.height + cell - 1) / cell;
   z.min_range.assign(static_cast<size_t>(z.cols) * z.rows, std::numeric_limits<float>::infinity());
+  return z;
+}
+
+// Enters a point at `pixel` and `range` (m) covering a disc of footprint_m:
+// radius focal * footprint / (2 range) px.
+void Splat(const Vec2& pixel, double range, double focal, double footprint_m, ZBuffer* z) {
+  const int cell = z->cell;
+  const double radius = std::min(focal * footprint_m / (2.0 * range), 4.0 * cell + 64.0);
+  const int c0 = std::max(0, static_cast<int>(std::floor((pixel.x() + 0.5 - radius) / cell)));
+  const int c1 =
+      std::min(z->cols - 1, static_cast<int>(std::floor((pixel.x() + 0.5 + radius) / cell)));
+  const int r0 = std::max(0, static_cast<int>(std::floor((pixel.y() + 0.5 - radius) / cell)));
+  const int r1 =
+      std::min(z->rows - 1, static_cast<int>(std::floor((pixel.y() + 0.5 + radius) / cell)));
+  for (int r = r0; r <= r1; ++r) {
+    for (int c = c0; c <= c1; ++c) {
+      float& m = z->min_range[static_cast<size_t>(r) * z->cols + c];
+      m = std::min(m, static_cast<float>(range));
+    }
+  }
+}
+
+// Cosine of the widest angle between the optical axis and a ray through the
+// image border (sampled every 8 px), widened by 1 degree: no point at a larger
+// angle projects into the image.
+double MinViewCosine(const CameraModel& model) {
+  double widest = 0;
+  Vec3 ray;
+  auto sample = [&](double u, double v) {
+    if (model.Unproject(Vec2(u, v), &ray)) {
+      widest = std::max(widest, std::acos(std::clamp(ray.normalized().z(), -1.0, 1.0)));
+    } else {
+      widest = M_PI;
+    }
+  };
+  for (int u = 0; u <= model.width; u += 8) {
+    sample(u - 0.5, -0.5);
+    sample(u - 0.5, model.height - 0.5);
+  }
+  for (int v = 0; v <= model.height; v += 8) {
+    sample(-0.5, v - 0.5);
+    sample(model.width - 0.5, v - 0.5);
+  }
+  return std::cos(std::min(M_PI, widest + M_PI / 180.0));
+}
+
+ZBuffer BuildZBuffer(const CameraModel& model,
+                     const SE3& cam_from_world,
+                     const std::vector<Eigen::Vector3f>& points_in_world,
+                     int cell,
+                     double footprint_m) {
+  ZBuffer z = EmptyZBuffer(model, cell);
   const double focal = 0.5 * (model.fx + model.fy);
   Vec2 pixel;
   for (const Eigen::Vector3f& p : points_in_world) {
     const Vec3 x = cam_from_world * p.cast<double>();
     if (!model.Project(x, &pixel, /*check_bounds=*/true)) continue;
-    const double range = x.norm();
-    // The point covers a disc of footprint_m: radius f * footprint / (2 range) px.
-    const double radius = std::min(focal * footprint_m / (2.0 * range), 4.0 * cell + 64.0);
-    const int c0 = std::max(0, static_cast<int>(std::floor((pixel.x() + 0.5 - radius) / cell)));
-    const int c1 =
-        std::min(z.cols - 1, static_cast<int>(std::floor((pixel.x() + 0.5 + radius) / cell)));
-    const int r0 = std::max(0, static_cast<int>(std::floor((pixel.y() + 0.5 - radius) / cell)));
-    const int r1 =
-        std::min(z.rows - 1, static_cast<int>(std::floor((pixel.y() + 0.5 + radius) / cell)));
-    for (int r = r0; r <= r1; ++r) {
-      for (int c = c0; c <= c1; ++c) {
-        float& m = z.min_range[static_cast<size_t>(r) * z.cols + c];
-        m = std::min(m, static_cast<float>(range));
-      }
-    }
+    Splat(pixel, x.norm(), focal, footprint_m, &z);
   }
   return z;
 }
@@ -279,7 +320,140 @@ std::map<std::pair<int, int>, PairVotes> ComputeCovisibility(
     for (const auto& [pair, n] : pair_votes[q]) {
       PairVotes& v = result[pair];
       v.count += n;
+      v.score = static_cast<double>(v.count);
       v.voters.push_back({scan_pairs[q], n});
+    }
+  }
+  return result;
+}
+
+std::map<std::pair<int, int>, PairVotes> ComputeMapCovisibility(
+    const Rig& rig,
+    const std::vector<ImporterImage>& images,
+    const std::vector<KeyframeScan>& scans,
+    const CovisibilityOptions& options) {
+  THROW_CHECK(options.Check());
+  for (const ImporterImage& image : images) {
+    THROW_CHECK_LT(static_cast<size_t>(image.camera_index), rig.cameras.size());
+  }
+  std::optional<tbb::global_control> threads;
+  if (options.num_threads > 0) {
+    threads.emplace(tbb::global_control::max_allowed_parallelism, options.num_threads);
+  }
+  // The map: every scan in the world frame, one point per voxel.
+  std::vector<Eigen::Vector3f> world;
+  for (const KeyframeScan& scan : scans) {
+    const Eigen::Matrix3f R = scan.world_from_imu.RotationMatrix().cast<float>();
+    const Eigen::Vector3f t = scan.world_from_imu.translation().cast<float>();
+    for (const auto& p : scan.points_in_imu) world.push_back(R * p + t);
+  }
+  const std::vector<Eigen::Vector3f> map = VoxelDownsamplePoints(world, options.scan_voxel_size_m);
+  world = {};
+  const int n = static_cast<int>(images.size());
+  const double max_range = options.max_point_range_m > 0 ? options.max_point_range_m
+                                                         : std::numeric_limits<double>::infinity();
+  std::vector<double> min_view_cos;
+  for (const RigCamera& camera : rig.cameras) min_view_cos.push_back(MinViewCosine(camera.model));
+  // Per image: the visible map points, ascending.
+  std::vector<std::vector<uint32_t>> visible(n);
+  tbb::parallel_for(0, n, [&](int a) {
+    const CameraModel& model = rig.cameras[images[a].camera_index].model;
+    const SE3 cam_from_world = images[a].world_from_cam.Inverse();
+    // Map points in the image (within max_range): index, pixel, range.
+    struct Projected {
+      uint32_t index;
+      float range;
+      Vec2 pixel;
+    };
+    std::vector<Projected> in_view;
+    const double max_range_sq = max_range * max_range;
+    const Eigen::Matrix3f R = cam_from_world.RotationMatrix().cast<float>();
+    const Eigen::Vector3f t = cam_from_world.translation().cast<float>();
+    Vec2 pixel;
+    const float min_cos = static_cast<float>(min_view_cos[images[a].camera_index]);
+    for (size_t k = 0; k < map.size(); ++k) {
+      const Eigen::Vector3f xf = R * map[k] + t;
+      const float range_sq = xf.squaredNorm();
+      if (range_sq > max_range_sq) continue;
+      if (xf.z() < min_cos * std::sqrt(range_sq)) continue;
+      const Vec3 x = xf.cast<double>();
+      if (!model.Project(x, &pixel, /*check_bounds=*/true)) continue;
+      in_view.push_back({static_cast<uint32_t>(k), static_cast<float>(x.norm()), pixel});
+    }
+    ZBuffer z = EmptyZBuffer(model, options.zbuffer_cell_px);
+    const double focal = 0.5 * (model.fx + model.fy);
+    for (const Projected& p : in_view) {
+      Splat(p.pixel, p.range, focal, options.point_footprint_m, &z);
+    }
+    for (const Projected& p : in_view) {
+      const float front = z.At(p.pixel);
+      if (front < 0.f) continue;
+      if (p.range <=
+          front * (1.0 + options.occlusion_tolerance_ratio) + options.occlusion_tolerance_m) {
+        visible[a].push_back(p.index);
+      }
+    }
+  });
+  // The images seeing each map point (compressed rows, images ascending).
+  std::vector<uint32_t> row_start(map.size() + 1, 0);
+  for (int a = 0; a < n; ++a) {
+    for (uint32_t k : visible[a]) ++row_start[k + 1];
+  }
+  for (size_t k = 0; k < map.size(); ++k) row_start[k + 1] += row_start[k];
+  std::vector<int> seen_by(row_start.back());
+  {
+    std::vector<uint32_t> fill(row_start.begin(), row_start.end() - 1);
+    for (int a = 0; a < n; ++a) {
+      for (uint32_t k : visible[a]) seen_by[fill[k]++] = a;
+    }
+  }
+  // Votes of each image a with the images b > a.
+  const double min_cos = std::cos(options.max_view_angle_deg * M_PI / 180.0);
+  // Per image a: (b, votes, solid-angle weight) for the images b > a.
+  struct Tally {
+    int b;
+    int64_t count;
+    double area;
+  };
+  const double voxel_sq =
+      options.scan_voxel_size_m > 0 ? options.scan_voxel_size_m * options.scan_voxel_size_m : 1.0;
+  std::vector<std::vector<Tally>> tallies(n);
+  tbb::parallel_for(0, n, [&](int a) {
+    std::vector<int64_t> count(n, 0);
+    std::vector<double> area(n, 0.0);
+    const Vec3 ca = images[a].world_from_cam.translation();
+    for (uint32_t k : visible[a]) {
+      const Vec3 p = map[k].cast<double>();
+      const Vec3 da = p - ca;
+      const double range_a = da.norm();
+      const Vec3 ra = da / range_a;
+      for (uint32_t e = row_start[k]; e < row_start[k + 1]; ++e) {
+        const int b = seen_by[e];
+        if (b <= a) continue;
+        const Vec3 db = p - images[b].world_from_cam.translation();
+        const double range_b = db.norm();
+        if (ra.dot(db) < min_cos * range_b) continue;
+        ++count[b];
+        area[b] += voxel_sq / (range_a * range_b);
+      }
+    }
+    for (int b = a + 1; b < n; ++b) {
+      if (count[b] > 0) tallies[a].push_back({b, count[b], area[b]});
+    }
+  });
+  std::map<std::pair<int, int>, PairVotes> result;
+  for (int a = 0; a < n; ++a) {
+    for (const Tally& t : tallies[a]) {
+      PairVotes& v = result[{a, t.b}];
+      v.count = t.count;
+      if (options.score == "fraction") {
+        const size_t seen = std::min(visible[a].size(), visible[t.b].size());
+        v.score = static_cast<double>(t.count) / static_cast<double>(seen);
+      } else if (options.score == "area") {
+        v.score = t.area;
+      } else {
+        v.score = static_cast<double>(t.count);
+      }
     }
   }
   return result;
@@ -338,12 +512,12 @@ std::vector<SelectedPair> SelectPairs(const Rig& rig,
   };
   const int n = static_cast<int>(images.size());
   // Co-visibility (or the fallback): each image's best pairs.
-  std::vector<std::vector<std::pair<int64_t, int>>> ranked(n);  // (score, other)
+  std::vector<std::vector<std::pair<double, int>>> ranked(n);  // (score, other)
   if (!use_priors_fallback) {
     for (const auto& [pair, v] : votes) {
       if (v.count < options.min_count) continue;
-      ranked[pair.first].push_back({v.count, pair.second});
-      ranked[pair.second].push_back({v.count, pair.first});
+      ranked[pair.first].push_back({v.score, pair.second});
+      ranked[pair.second].push_back({v.score, pair.first});
     }
   }
   std::set<std::pair<int, int>> kept;
@@ -790,8 +964,11 @@ DatabaseImporterSummary RunDatabaseImporter(const DatabaseImporterInput& input,
       const std::string path =
           JoinPaths(JoinPaths(input.lio_path, "keyframes"), std::to_string(t) + ".pcd");
       if (!FileExists(path)) {
-        throw InputError(
-            constraints_path, "", fmt::format("keyframe {} has no scan {} (--lio_path)", t, path));
+        throw InputError(options.covisibility.source == "map"
+                             ? JoinPaths(input.pose_slam_path, "keyframes.txt")
+                             : constraints_path,
+                         "",
+                         fmt::format("keyframe {} has no scan {} (--lio_path)", t, path));
       }
       KeyframeScan scan;
       scan.t_ns = t;
@@ -807,8 +984,13 @@ DatabaseImporterSummary RunDatabaseImporter(const DatabaseImporterInput& input,
       return static_cast<int>(scans.size() - 1);
     };
     CheckDirExists(JoinPaths(input.lio_path, "keyframes"), "--lio_path keyframes folder");
+    if (options.covisibility.source == "map") {
+      for (TimestampNs t : keyframe_stamps) scan_index(t);
+      votes = ComputeMapCovisibility(rig, images, scans, options.covisibility);
+    }
     std::set<std::pair<TimestampNs, TimestampNs>> seen;
     for (const LidarConstraintRecord& r : constraints) {
+      if (options.covisibility.source == "map") break;
       TimestampNs ti = r.t_i_ns, tj = r.t_j_ns;
       if (!r.has_stamps) {
         if (r.index_i >= static_cast<int64_t>(keyframe_stamps.size()) ||
@@ -822,10 +1004,12 @@ DatabaseImporterSummary RunDatabaseImporter(const DatabaseImporterInput& input,
       scan_pairs.push_back({scan_index(ti), scan_index(tj)});
     }
     // Each scan with itself: the images of one scan that see the same points.
-    for (size_t u = 0; u < scans.size(); ++u) {
-      scan_pairs.push_back({static_cast<int>(u), static_cast<int>(u)});
+    if (options.covisibility.source == "constraints") {
+      for (size_t u = 0; u < scans.size(); ++u) {
+        scan_pairs.push_back({static_cast<int>(u), static_cast<int>(u)});
+      }
+      votes = ComputeCovisibility(rig, images, scans, scan_pairs, options.covisibility);
     }
-    votes = ComputeCovisibility(rig, images, scans, scan_pairs, options.covisibility);
   }
   summary.num_covisibility_votes_pairs = votes.size();
   const std::vector<SelectedPair> pairs =

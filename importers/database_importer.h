@@ -24,7 +24,16 @@
 // d centre = R v - R [t_imu_cam]_x omega), plus (drift * |t - t_keyframe|)^2 and
 // a floor min_position_sigma_m^2 on the diagonal.
 //
-// LiDAR-proxy co-visibility (FL2BIPS-GTSFM, "Co-Visibility Evaluation"): for each
+// LiDAR-proxy co-visibility, source "map" (default): every keyframe scan (lio's keyframes/ at
+// the pose_slam keyframe poses) goes into one world-frame map, voxel-downsampled to
+// scan_voxel_size_m, so that the test does not depend on which scan pairs pose_slam
+// constrained. Each image sees the map points that project into it and pass the z-buffer test
+// below against the map itself (the LiDAR proxy of the surfaces; range at most
+// max_point_range_m when > 0). A pair (a, b) gets one vote per map point both see with rays
+// from the two camera centres at most max_view_angle_deg apart (wider baselines rarely match
+// with SIFT). Images run in parallel (TBB); the counts do not depend on the thread count.
+//
+// Source "constraints" (FL2BIPS-GTSFM, "Co-Visibility Evaluation"): for each
 // constrained keyframe pair (i, j) both scans go to the world frame with the
 // pose_slam keyframe poses; each point of scan i (voxel-downsampled) whose
 // nearest point of scan j is within max_point_distance_m is projected into the
@@ -39,9 +48,10 @@
 // parallel (TBB); the votes are merged in scan-pair order, so the result does not depend on the
 // thread count. The importer adds every scan paired with itself (its images that see the same
 // points). Selection: pairs with >= min_count votes, each kept when it is among the
-// max_pairs_per_image best of either of its images; plus intra-rig pairs of
-// cameras whose fields of view overlap and num_temporal_neighbors successive
-// images per camera. Without constraints the co-visibility part is replaced by
+// max_pairs_per_image best of either of its images by score (CovisibilityOptions::score); plus
+// intra-rig pairs of cameras whose fields of view overlap and num_temporal_neighbors successive
+// images per camera. The images of one rig frame whose cameras' views do not overlap are listed
+// only when their votes select them. Without constraints the co-visibility part is replaced by
 // the fallback_num_neighbors nearest images by prior camera centre (viewing
 // directions within 90 degrees).
 //
@@ -71,6 +81,11 @@
 namespace lisfm {
 
 struct CovisibilityOptions {
+  // "map": every keyframe scan in one map, image pairs by shared visible map points (header
+  // comment); "constraints": only the constrained scan pairs vote.
+  std::string source = "map";
+  double max_view_angle_deg = 60.0;      // deg, map: largest angle between the two rays to a point
+  double max_point_range_m = 0.0;        // m, map: farthest point an image counts (0: no limit)
   double max_point_distance_m = 0.05;    // m, a point of scan i matches scan j within this
   double scan_voxel_size_m = 0.1;        // m, voxel of the projected points (0: off)
   double max_image_time_offset_s = 2.5;  // s, an image belongs to its nearest scan within this
@@ -79,6 +94,12 @@ struct CovisibilityOptions {
   double occlusion_tolerance_m = 0.15;   // m, depth margin of the visibility test
   double occlusion_tolerance_ratio = 0.05;  // relative depth margin of the visibility test
   int min_count = 10;                       // votes a pair needs to be listed
+  // Ranking score of a pair (map source; the constraints source always ranks by votes):
+  // "area" sum over the shared points of voxel^2 / (range_a range_b), the solid angle (sr) the
+  // shared surface covers in the two images (features spread over the image, not over the
+  // scene's square metres); "count" the votes; "fraction" the votes / the smaller number of map
+  // points the two images see.
+  std::string score = "area";
   int max_pairs_per_image = 25;    // best pairs kept per image (a pair stays when either keeps it)
   int num_temporal_neighbors = 1;  // successive images of the same camera paired with each image
   bool intra_rig_pairs = true;     // pair the cameras of one rig frame whose views overlap
@@ -136,6 +157,7 @@ struct KeyframeScan {
 // Votes of one image pair (a < b, indices into the image list).
 struct PairVotes {
   int64_t count = 0;
+  double score = 0;  // ranking score (CovisibilityOptions::score)
   // (keyframe i, keyframe j) -> votes it gave, in keyframe-pair order.
   std::vector<std::pair<std::pair<int, int>, int64_t>> voters;
 };
@@ -146,6 +168,13 @@ std::map<std::pair<int, int>, PairVotes> ComputeCovisibility(
     const std::vector<ImporterImage>& images,
     const std::vector<KeyframeScan>& scans,
     const std::vector<std::pair<int, int>>& scan_pairs,
+    const CovisibilityOptions& options);
+
+// Map co-visibility (header comment) from every scan in `scans`; voters stay empty.
+std::map<std::pair<int, int>, PairVotes> ComputeMapCovisibility(
+    const Rig& rig,
+    const std::vector<ImporterImage>& images,
+    const std::vector<KeyframeScan>& scans,
     const CovisibilityOptions& options);
 
 // Camera index pairs (a < b) of the rig whose views overlap (header comment).

@@ -141,6 +141,150 @@ TEST(Covisibility, DeterministicAcrossThreadCounts) {
   }
 }
 
+TEST(MapCovisibility, WallSeenByFacingCamerasOnly) {
+  const TwoScanCase c = MakeTwoScanCase(/*occluder=*/false);
+  const auto votes = ComputeMapCovisibility(c.rig, c.images, c.scans, CovisibilityOptions());
+  // Only cam0 at t0 (image 0) and cam0 at t1 (image 2) face the wall; both see
+  // all of it (60 x 40 voxels of 10 cm, the two scans' points share the voxels).
+  ASSERT_EQ(votes.size(), 1u);
+  const auto& [pair, v] = *votes.begin();
+  EXPECT_EQ(pair, std::make_pair(0, 2));
+  EXPECT_GT(v.count, 1500);
+  EXPECT_LE(v.count, 61 * 41);
+  EXPECT_TRUE(v.voters.empty());
+  // Area score: the wall's solid angle seen from ~5 m, at most its 6 x 4 m^2 / (5 m)^2.
+  EXPECT_GT(v.score, 0.5);
+  EXPECT_LT(v.score, 24.0 / 25.0);
+  CovisibilityOptions count;
+  count.score = "count";
+  EXPECT_EQ(ComputeMapCovisibility(c.rig, c.images, c.scans, count).begin()->second.score,
+            static_cast<double>(v.count));
+  CovisibilityOptions fraction;
+  fraction.score = "fraction";
+  const auto f = ComputeMapCovisibility(c.rig, c.images, c.scans, fraction);
+  ASSERT_EQ(f.size(), 1u);
+  EXPECT_GT(f.begin()->second.score, 0.9);
+  EXPECT_LE(f.begin()->second.score, 1.0);
+  // The rays from the two centres are at least 2.95 degrees apart at every
+  // wall point: no vote below that.
+  CovisibilityOptions narrow;
+  narrow.max_view_angle_deg = 2.5;
+  EXPECT_TRUE(ComputeMapCovisibility(c.rig, c.images, c.scans, narrow).empty());
+}
+
+// Camera A at the origin and camera B at x = 3.5, both looking along +x; a
+// far wall at x = 5 that B sees. With a wall at x = 2 in the map (scanned from
+// both places), A sees only that wall: the pair gets no vote.
+TEST(MapCovisibility, WallBetweenTheCamerasHidesTheFarWall) {
+  for (const bool occluder : {false, true}) {
+    SCOPED_TRACE(occluder ? "occluder" : "open");
+    Rig rig;
+    rig.cameras = {MakeCamera("cam0", true)};
+    std::vector<ImporterImage> images;
+    std::vector<KeyframeScan> scans;
+    const std::vector<SE3> poses = {SE3::Identity(), SE3(Quat::Identity(), Vec3(3.5, 0.0, 0.0))};
+    for (size_t k = 0; k < poses.size(); ++k) {
+      const TimestampNs t = static_cast<TimestampNs>(k + 1) * 1000000000;
+      ImporterImage image;
+      image.stamp_ns = image.t_imu_ns = t;
+      image.name = "cam0/data/" + std::to_string(t) + ".png";
+      image.world_from_cam = poses[k] * rig.cameras[0].cam_from_imu.Inverse();
+      image.frame = static_cast<int>(k);
+      images.push_back(image);
+      std::vector<Eigen::Vector3f> scene = Wall(k == 0 && occluder ? 2.0 : 5.0);
+      if (k == 1 && occluder) {
+        const auto near = Wall(2.0);
+        scene.insert(scene.end(), near.begin(), near.end());
+      }
+      scans.push_back(MakeScan(t, poses[k], scene));
+    }
+    const auto votes = ComputeMapCovisibility(rig, images, scans, CovisibilityOptions());
+    if (occluder) {
+      EXPECT_TRUE(votes.empty());
+    } else {
+      ASSERT_EQ(votes.size(), 1u);
+      // B at 1.5 m sees +-1.6 m x +-1.2 m of the wall: ~32 x 24 voxels.
+      EXPECT_GT(votes.begin()->second.count, 500);
+    }
+  }
+}
+
+TEST(MapCovisibility, DeterministicAcrossThreadCounts) {
+  const TwoScanCase c = MakeTwoScanCase(true);
+  CovisibilityOptions one;
+  one.num_threads = 1;
+  const auto a = ComputeMapCovisibility(c.rig, c.images, c.scans, one);
+  const auto b = ComputeMapCovisibility(c.rig, c.images, c.scans, CovisibilityOptions());
+  ASSERT_EQ(a.size(), b.size());
+  for (const auto& [pair, v] : a) {
+    EXPECT_EQ(b.at(pair).count, v.count);
+    EXPECT_EQ(b.at(pair).score, v.score);
+  }
+}
+
+// Rig pairing (header comment of database_importer.h): the images of one rig
+// frame are paired when their cameras' views overlap (intra_rig_pairs), never
+// otherwise without votes; images of different frames only through votes or
+// as temporal neighbours of the same camera.
+TEST(SelectPairs, RigFramesPairOverlappingCamerasOnly) {
+  Rig rig;
+  RigCamera left = MakeCamera("cam0", true);
+  RigCamera right = MakeCamera("cam1", true);
+  right.cam_from_imu = SE3(right.cam_from_imu.rotation(), Vec3(-0.1, 0.0, 0.0));  // 10 cm base
+  rig.cameras = {left, right, MakeCamera("cam2", false)};
+  std::vector<ImporterImage> images;
+  for (int f = 0; f < 3; ++f) {
+    for (int k = 0; k < 3; ++k) {
+      ImporterImage image;
+      image.camera_index = k;
+      image.stamp_ns = image.t_imu_ns = (f + 1) * TimestampNs{1000000000};
+      image.name = "cam" + std::to_string(k) + "/data/" + std::to_string(image.stamp_ns) + ".png";
+      image.world_from_cam =
+          SE3(Quat::Identity(), Vec3(f, 0, 0)) * rig.cameras[k].cam_from_imu.Inverse();
+      image.frame = f;
+      images.push_back(image);
+    }
+  }
+  const auto overlapping = OverlappingRigCameras(rig, CovisibilityOptions());
+  ASSERT_EQ(overlapping, (std::vector<std::pair<int, int>>{{0, 1}}));
+  CovisibilityOptions options;
+  options.num_temporal_neighbors = 0;
+  const std::map<std::pair<int, int>, PairVotes> no_votes;
+  auto pairs = SelectPairs(rig, images, no_votes, false, options);
+  ASSERT_EQ(pairs.size(), 3u);
+  for (int f = 0; f < 3; ++f) {
+    EXPECT_EQ(pairs[f].a, 3 * f);
+    EXPECT_EQ(pairs[f].b, 3 * f + 1);
+    EXPECT_EQ(pairs[f].source, PairSource::kRig);
+  }
+  options.intra_rig_pairs = false;
+  EXPECT_TRUE(SelectPairs(rig, images, no_votes, false, options).empty());
+  // One temporal neighbour: each camera's successive frames, nothing across cameras.
+  options.num_temporal_neighbors = 1;
+  pairs = SelectPairs(rig, images, no_votes, false, options);
+  ASSERT_EQ(pairs.size(), 6u);
+  for (const SelectedPair& p : pairs) {
+    EXPECT_EQ(p.source, PairSource::kTemporal);
+    EXPECT_EQ(images[p.a].camera_index, images[p.b].camera_index);
+    EXPECT_EQ(images[p.b].frame, images[p.a].frame + 1);
+  }
+  // Votes between the front and back cameras of one frame list the pair (as
+  // co-visibility); the rig rule alone never does.
+  std::map<std::pair<int, int>, PairVotes> votes;
+  votes[{0, 2}].count = 50;
+  votes[{0, 2}].score = 50;
+  options.num_temporal_neighbors = 0;
+  options.intra_rig_pairs = true;
+  pairs = SelectPairs(rig, images, votes, false, options);
+  ASSERT_EQ(pairs.size(), 4u);
+  EXPECT_EQ(pairs[0].a, 0);
+  EXPECT_EQ(pairs[0].b, 1);
+  EXPECT_EQ(pairs[1].a, 0);
+  EXPECT_EQ(pairs[1].b, 2);
+  EXPECT_EQ(pairs[1].source, PairSource::kCovisibility);
+  EXPECT_EQ(pairs[1].count, 50);
+}
+
 TEST(InterpolatePoseSe3, ExactOnAScrewMotion) {
   Vec6 xi;
   xi << 0.3, -0.2, 0.5, 1.0, 0.4, -0.2;  // per second

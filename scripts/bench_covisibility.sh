@@ -6,12 +6,11 @@
 #
 #   scripts/bench_covisibility.sh [--scene NAME] [--duration S] [--camera_rate HZ]
 #                                 [--max_num_features N] [--work_dir DIR] [--skip_mapper]
-#                                 [--importer_args "..."]
+#                                 [--skip_sequential] [--importer_args "..."] [--list_args "..."]...
 #
 # Steps (cached in WORK_DIR, keyed by the scene/duration/rate): lisfm simulate
-# (default calibration errors), lisfm lio, a stand-in pose_slam folder from the
-# lio run (lisfm_pose_slam_standin: lio poses, Bayesian ICP constraints between
-# nearby keyframes), lisfm database_importer (timed), stock feature_extractor on
+# (default error sources), lisfm lio, lisfm pose_slam (defaults), lisfm
+# database_importer (timed), stock feature_extractor on
 # its image list, stock exhaustive_matcher once (its two_view_geometries give the
 # verified pairs: >= 15 inliers; strong: >= 100). Then, on copies of the
 # database with features: matches_importer on our pairs.txt, spatial_matcher on
@@ -25,17 +24,22 @@
 # --scene defaults to site; an unknown scene falls back to office with a note.
 # --importer_args: extra lisfm database_importer options. The features and the
 # exhaustive result are reused only while the importer's image list is the same.
+# --list_args (repeatable): one more importer run with these options (instead
+# of --importer_args: an option may be given once), scored on its pairs.txt
+# alone (a "list only" row: pairs and recall, no matching).
 set -euo pipefail
 source "$(dirname "${BASH_SOURCE[0]}")/common.sh"
 
 SCENE=site
 DURATION=60
-RATE=1
+RATE=0.5
 FEATURES=1024
 WORK_DIR=/tmp/lisfm_bench_covisibility
 SKIP_MAPPER=0
+SKIP_SEQUENTIAL=0
 IMPORTER_ARGS=""
-usage() { sed -n '2,27p' "${BASH_SOURCE[0]}" | sed 's/^# \{0,1\}//'; }
+LIST_ARGS=()
+usage() { sed -n '2,29p' "${BASH_SOURCE[0]}" | sed 's/^# \{0,1\}//'; }
 while [ $# -gt 0 ]; do
   case "$1" in
     --scene) SCENE=$2; shift 2 ;;
@@ -44,7 +48,9 @@ while [ $# -gt 0 ]; do
     --max_num_features) FEATURES=$2; shift 2 ;;
     --work_dir) WORK_DIR=$2; shift 2 ;;
     --skip_mapper) SKIP_MAPPER=1; shift ;;
+    --skip_sequential) SKIP_SEQUENTIAL=1; shift ;;
     --importer_args) IMPORTER_ARGS=$2; shift 2 ;;
+    --list_args) LIST_ARGS+=("$2"); shift 2 ;;
     -h|--help) usage; exit 0 ;;
     *) echo "error: unknown argument '$1'" >&2; usage >&2; exit 2 ;;
   esac
@@ -53,12 +59,11 @@ done
 command -v colmap >/dev/null || { echo "error: stock colmap not found (apt-get install colmap)" >&2; exit 1; }
 command -v jq >/dev/null || { echo "error: jq not found (apt-get install jq)" >&2; exit 1; }
 command -v sqlite3 >/dev/null || { echo "error: sqlite3 not found (apt-get install sqlite3)" >&2; exit 1; }
-STANDIN=$LISFM_BUILD_DIR/importers/testing/lisfm_pose_slam_standin
 REFMODEL=$LISFM_BUILD_DIR/importers/testing/lisfm_sim_reference_model
-for b in "$LISFM" "$STANDIN" "$REFMODEL"; do
-  [ -x "$b" ] || { echo "error: $b not built (cmake --build $LISFM_BUILD_DIR --target lisfm lisfm_pose_slam_standin lisfm_sim_reference_model)" >&2; exit 1; }
+for b in "$LISFM" "$REFMODEL"; do
+  [ -x "$b" ] || { echo "error: $b not built (cmake --build $LISFM_BUILD_DIR --target lisfm lisfm_sim_reference_model)" >&2; exit 1; }
 done
-if ! "$LISFM" simulate -h | grep -q -- "--scene.*\b$SCENE\b"; then
+if ! "$LISFM" simulate -h | grep -- "--scene.*\b$SCENE\b" >/dev/null; then
   echo "note: scene '$SCENE' is not known to this lisfm simulate; using office instead" >&2
   SCENE=office
 fi
@@ -75,7 +80,8 @@ elapsed() { echo "$2 - $1" | bc; }
 [ -d "$W/seq" ] || "$LISFM" simulate --scene "$SCENE" --duration "$DURATION" --camera_rate "$RATE" \
   --output_path "$W/seq" --quiet 1
 [ -d "$W/lio" ] || "$LISFM" lio --input_path "$W/seq" --output_path "$W/lio" --quiet 1
-[ -d "$W/ps" ] || "$STANDIN" "$W/lio" "$W/ps"
+[ -d "$W/ps" ] || "$LISFM" pose_slam --input_path "$W/seq" --lio_path "$W/lio" --output_path "$W/ps" \
+  --quiet 1
 rm -rf "$W/db"
 t0=$(now)
 "$LISFM" database_importer --input_path "$W/seq" --pose_slam_path "$W/ps" --lio_path "$W/lio" \
@@ -157,13 +163,17 @@ rm -f "$W/spatial.tmp.db"
 
 # Sequential matcher (images in name order: per camera, by time).
 overlap=$(( BUDGET / NUM_IMAGES + 1 ))
-cp "$W/features.db" "$W/sequential.db"
-t0=$(now)
-colmap sequential_matcher --database_path "$W/sequential.db" \
-  --SequentialMatching.overlap "$overlap" --SequentialMatching.loop_detection 0 \
-  $MATCH >"$W/sequential.log" 2>&1
-SECONDS_OF[sequential]=$(elapsed "$t0" "$(now)")
-PAIRS_OF[sequential]=$(num_pairs "$W/sequential.db")
+METHODS="exhaustive ours spatial"
+if [ "$SKIP_SEQUENTIAL" = 0 ]; then
+  METHODS="$METHODS sequential"
+  cp "$W/features.db" "$W/sequential.db"
+  t0=$(now)
+  colmap sequential_matcher --database_path "$W/sequential.db" \
+    --SequentialMatching.overlap "$overlap" --SequentialMatching.loop_detection 0 \
+    $MATCH >"$W/sequential.log" 2>&1
+  SECONDS_OF[sequential]=$(elapsed "$t0" "$(now)")
+  PAIRS_OF[sequential]=$(num_pairs "$W/sequential.db")
+fi
 
 # global_mapper on each database: registered images, camera errors (SE(3)).
 mapper_row() {
@@ -188,6 +198,20 @@ mapper_row() {
   fi
 }
 
+# recall_of_list PAIRS MIN: fraction of the verified pairs with >= MIN inliers
+# in the pair list PAIRS (image names; pair_id from the database's image ids).
+recall_of_list() {
+  sqlite3 "$W/features.db" "select name, image_id from images" | tr '|' ' ' >"$W/ids.tmp"
+  awk 'NR == FNR {id[$1] = $2; next}
+       {a = id[$1]; b = id[$2]; if (a > b) {t = a; a = b; b = t}; printf "%.0f\n", a * 2147483647 + b}' \
+    "$W/ids.tmp" "$1" | sort >"$W/matched.tmp"
+  awk -v min="$2" '$2 >= min {print $1}' "$W/verified.txt" | sort >"$W/verified.tmp"
+  local total hit
+  total=$(wc -l <"$W/verified.tmp")
+  hit=$(comm -12 "$W/matched.tmp" "$W/verified.tmp" | wc -l)
+  if [ "$total" -eq 0 ]; then echo "n/a"; else echo "scale=1; 100 * $hit / $total" | bc; fi
+}
+
 VER_ALL=$(wc -l <"$W/verified.txt")
 VER_STRONG=$(awk '$2 >= 100' "$W/verified.txt" | wc -l)
 {
@@ -195,7 +219,7 @@ VER_STRONG=$(awk '$2 >= 100' "$W/verified.txt" | wc -l)
   echo
   echo "| method | pairs matched | % of exhaustive | matching s | recall verified | recall >= 100 inliers | registered | max rot. err. deg | max pos. err. cm |"
   echo "|---|---:|---:|---:|---:|---:|---:|---:|---:|"
-  for m in exhaustive ours spatial sequential; do
+  for m in $METHODS; do
     db=$W/$m.db
     label=$m
     [ "$m" = ours ] && label="LiDAR co-visibility (ours)"
@@ -204,5 +228,17 @@ VER_STRONG=$(awk '$2 >= 100' "$W/verified.txt" | wc -l)
     pct=$(echo "scale=1; 100 * ${PAIRS_OF[$m]} / ${PAIRS_OF[exhaustive]}" | bc)
     printf "| %s | %s | %s | %.1f | %s | %s %s\n" "$label" "${PAIRS_OF[$m]}" "$pct" \
       "${SECONDS_OF[$m]}" "$(recall "$db" 15)" "$(recall "$db" 100)" "$(mapper_row "$db" "$m")"
+  done
+  k=0
+  for args in "${LIST_ARGS[@]}"; do
+    k=$((k + 1))
+    rm -rf "$W/db_list$k"
+    "$LISFM" database_importer --input_path "$W/seq" --pose_slam_path "$W/ps" --lio_path "$W/lio" \
+      --output_path "$W/db_list$k" --DatabaseImporter.num_threads "$LISFM_JOBS" --quiet 1 \
+      $args 2>"$W/db_list$k.log" || { echo "error: database_importer $args failed: $W/db_list$k.log" >&2; exit 1; }
+    p=$(wc -l <"$W/db_list$k/pairs.txt")
+    pct=$(echo "scale=1; 100 * $p / ${PAIRS_OF[exhaustive]}" | bc)
+    printf "| ours, \`%s\` (list only) | %s | %s | – | %s | %s | – | – | – |\n" "$args" "$p" "$pct" \
+      "$(recall_of_list "$W/db_list$k/pairs.txt" 15)" "$(recall_of_list "$W/db_list$k/pairs.txt" 100)"
   done
 } | tee "$WORK_DIR/bench_covisibility.md"
