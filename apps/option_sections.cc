@@ -249,7 +249,7 @@ void AddBayesianIcpOptions(OptionManager* options, BayesianIcpOptions* bayes) {
                      &icp->min_planarity,
                      "ignore target points with lower planarity in --method "
                      "bayesian (replaces "
-                     "Icp.min_planarity; calibrated with 0.1)",
+                     "Icp.min_planarity; calibrated with 0.1, pose_slam's with 0)",
                      R::Between(0, 1));
   options->AddBool("Bayesian.field_of_view_gate",
                    &icp->field_of_view_gate,
@@ -268,12 +268,12 @@ void AddBayesianIcpOptions(OptionManager* options, BayesianIcpOptions* bayes) {
                    "with Bayesian.visibility_gate_m: a source point behind the nearest "
                    "target range of its bin is still visible when it is not behind that "
                    "target point's surface element (point and normal; grazing floors, "
-                   "ceilings)");
+                   "ceilings; pose_slam's calibration uses it)");
   options->AddDouble("Bayesian.min_normal_contrast",
                      &icp->min_normal_contrast,
                      "ignore target points whose normal is not determined, contrast "
                      "(l1 - l0) / l1 of the neighbourhood's eigenvalues l0 <= l1 <= l2 "
-                     "below this (0 = off)",
+                     "below this (0 = off; pose_slam's calibration uses 0.5)",
                      R::Between(0, 1));
   AddSgldOptions(options, &bayes->sgld);
   options->AddDouble("Bayesian.noise_sigma_m",
