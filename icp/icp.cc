@@ -239,8 +239,8 @@ bool IcpOptions::Check() const {
   CHECK_OPTION_GE(coarse_min_points, 1);
   CHECK_OPTION_GE(degeneracy_threshold, 0.0);
   CHECK_OPTION_GE(visibility_gate_m, 0.0);
-  CHECK_OPTION_MSG(min_normal_contrast, min_normal_contrast >= 0 && min_normal_contrast <= 1,
-                   "in [0, 1]");
+  CHECK_OPTION_MSG(
+      min_normal_contrast, min_normal_contrast >= 0 && min_normal_contrast <= 1, "in [0, 1]");
   return true;
 }
 

@@ -263,8 +263,9 @@ TEST(KdTreeTarget, VisibilityGate) {
 }
 
 // A spinning LiDAR 1.4 m above a floor (z = -1.4 m; rings every 1 deg from -2.5 to
-// -19.5 deg, one in each 1 deg elevation bin of the range image; 0.2 deg azimuth steps), seen from `origin`, with an optional wall patch
-// (x = 4 m, |y| <= 1 m, z <= 1 m) in front of the origin: the first surface each ray meets.
+// -19.5 deg, one in each 1 deg elevation bin of the range image; 0.2 deg azimuth
+// steps), seen from `origin`, with an optional wall patch (x = 4 m, |y| <= 1 m,
+// z <= 1 m) in front of the origin: the first surface each ray meets.
 PointSet ScanFloor(const Eigen::Vector3f& origin, bool with_wall) {
   PointSet points;
   for (int ring = 0; ring < 18; ++ring) {
@@ -342,7 +343,8 @@ TEST(KdTreeTarget, NormalContrastKeepsRingLineNormals) {
     low_planarity += planarity < 0.1f ? 1 : 0;
     if (contrast >= 0.5f) {
       ++contrast_kept;
-      max_tilt_deg = std::max(max_tilt_deg, std::acos(std::min(1.f, std::abs(n.z()))) * 180.0 / M_PI);
+      const double tilt_deg = std::acos(std::min(1.f, std::abs(n.z()))) * 180.0 / M_PI;
+      max_tilt_deg = std::max(max_tilt_deg, tilt_deg);
     }
   }
   ASSERT_GT(far, 500);
