@@ -103,8 +103,8 @@ int RunIcp(int argc, char** argv) {
   NormalOptions target_normals = normal_options;
   if (method == "bayesian") {
     // The calibrated association of Bayesian ICP (BayesianIcpOptions): the Icp.*
-    // options except kernel, kernel scale, planarity gate, the two view gates and
-    // normal k, which come from Bayesian.*.
+    // options except kernel, kernel scale, planarity and normal-contrast gates, the
+    // view gates and normal k, which come from Bayesian.*.
     const IcpOptions calibrated = bayes.icp;
     bayes.icp = icp;
     bayes.icp.kernel = calibrated.kernel;
@@ -112,6 +112,8 @@ int RunIcp(int argc, char** argv) {
     bayes.icp.min_planarity = calibrated.min_planarity;
     bayes.icp.field_of_view_gate = calibrated.field_of_view_gate;
     bayes.icp.visibility_gate_m = calibrated.visibility_gate_m;
+    bayes.icp.visibility_follows_surface = calibrated.visibility_follows_surface;
+    bayes.icp.min_normal_contrast = calibrated.min_normal_contrast;
     target_normals.num_neighbors = bayes.normal_neighbors;
   }
   // Parse validated each struct as registered; these hold after the merge too.

@@ -263,7 +263,7 @@ void AddBayesianIcpOptions(OptionManager* options, BayesianIcpOptions* bayes) {
                      &icp->min_planarity,
                      "ignore target points with lower planarity in --method "
                      "bayesian (replaces "
-                     "Icp.min_planarity; calibrated with 0.1)",
+                     "Icp.min_planarity; calibrated with 0.1, pose_slam's with 0)",
                      R::Between(0, 1));
   options->AddBool("Bayesian.field_of_view_gate",
                    &icp->field_of_view_gate,
@@ -277,6 +277,18 @@ void AddBayesianIcpOptions(OptionManager* options, BayesianIcpOptions* bayes) {
       "with 0.1; set 0 for clouds not in their sensor frame)",
       R::AtLeast(0));
   options->AddAlias("Bayesian.visibility_gate", "Bayesian.visibility_gate_m");
+  options->AddBool("Bayesian.visibility_follows_surface",
+                   &icp->visibility_follows_surface,
+                   "with Bayesian.visibility_gate_m: a source point behind the nearest "
+                   "target range of its bin is still visible when it is not behind that "
+                   "target point's surface element (point and normal; grazing floors, "
+                   "ceilings; pose_slam's calibration uses it)");
+  options->AddDouble("Bayesian.min_normal_contrast",
+                     &icp->min_normal_contrast,
+                     "ignore target points whose normal is not determined, contrast "
+                     "(l1 - l0) / l1 of the neighbourhood's eigenvalues l0 <= l1 <= l2 "
+                     "below this (0 = off; pose_slam's calibration uses 0.5)",
+                     R::Between(0, 1));
   AddSgldOptions(options, &bayes->sgld);
   options->AddDouble("Bayesian.noise_sigma_m",
                      &bayes->noise_sigma_m,

@@ -57,6 +57,8 @@
 //        the initial-guess error)] [--source_normals K] [--normal_angle DEG (with
 //        --source_normals: the new default's max_normal_angle_deg)] [--visibility TAU
 //        (IcpOptions::visibility_gate_m of the new default; 0 = off)]
+//        [--follow_surface | --no_follow_surface (its visibility_follows_surface)]
+//        [--contrast C (its min_normal_contrast)]
 //        [--patch K (FAST-LIO-style plane fits over the K nearest target points)]
 //        [--fov_gate | --no_fov_gate (IcpOptions::field_of_view_gate of the new default)]
 //        (variants, exploration)
@@ -269,6 +271,10 @@ double g_max_corr = -1;        // --max_corr (exploration)
 // --visibility TAU (exploration): IcpOptions::visibility_gate_m of the new default
 // (< 0: the library's).
 double g_visibility = -1;
+// --follow_surface (exploration): IcpOptions::visibility_follows_surface of the new
+// default; --contrast C: its min_normal_contrast (< 0: the library's).
+int g_follow_surface = -1;
+double g_contrast = -1;
 
 // Exploration (--patch K): FAST-LIO-style association: the K nearest
 // target points of the query (within the correspondence distance) get a plane fit
@@ -328,6 +334,8 @@ IcpOptions NewDefaultIcpOptions() {
   if (g_normal_angle > 0) o.max_normal_angle_deg = g_normal_angle;
   if (g_fov_gate >= 0) o.field_of_view_gate = g_fov_gate > 0;
   if (g_visibility >= 0) o.visibility_gate_m = g_visibility;
+  if (g_follow_surface >= 0) o.visibility_follows_surface = g_follow_surface > 0;
+  if (g_contrast >= 0) o.min_normal_contrast = g_contrast;
   return o;
 }
 
@@ -707,6 +715,12 @@ int Main(int argc, char** argv) {
       g_normal_k = std::atoi(argv[++i]);
     } else if (std::strcmp(argv[i], "--min_planarity") == 0 && i + 1 < argc) {
       g_min_planarity = std::atof(argv[++i]);
+    } else if (std::strcmp(argv[i], "--contrast") == 0 && i + 1 < argc) {
+      g_contrast = std::atof(argv[++i]);
+    } else if (std::strcmp(argv[i], "--follow_surface") == 0) {
+      g_follow_surface = 1;
+    } else if (std::strcmp(argv[i], "--no_follow_surface") == 0) {
+      g_follow_surface = 0;
     } else if (std::strcmp(argv[i], "--tune_grid") == 0) {
       tune_grid = true;
     } else if (std::strcmp(argv[i], "--fresh") == 0 && i + 2 < argc) {

@@ -239,6 +239,8 @@ bool IcpOptions::Check() const {
   CHECK_OPTION_GE(coarse_min_points, 1);
   CHECK_OPTION_GE(degeneracy_threshold, 0.0);
   CHECK_OPTION_GE(visibility_gate_m, 0.0);
+  CHECK_OPTION_MSG(
+      min_normal_contrast, min_normal_contrast >= 0 && min_normal_contrast <= 1, "in [0, 1]");
   return true;
 }
 
@@ -255,11 +257,12 @@ struct KdTreeTarget::FieldOfView {
   float min_sin_elevation = -1.f, max_sin_elevation = 1.f;
   float max_range_m = 0.f;
   // Visibility (range image): per bin the range of the nearest target point, 0 if
-  // the bin holds none.
+  // the bin holds none, and that point's index.
   static constexpr int kAzimuthBins = 720;    // 0.5 deg
   static constexpr int kElevationBins = 180;  // 1 deg, -90..+90 deg
   std::once_flag image_once;
   std::vector<float> nearest_range;
+  std::vector<uint32_t> nearest_index;
   // Bin of a direction d != 0 (seen from the viewpoint) of norm r.
   static int Bin(const Eigen::Vector3f& d, float r) {
     constexpr float kToDeg = 180.f / static_cast<float>(M_PI);
@@ -271,23 +274,46 @@ struct KdTreeTarget::FieldOfView {
   }
 };
 
-bool KdTreeTarget::Visible(const Eigen::Vector3f& point, float tolerance_m) const {
+bool KdTreeTarget::Visible(const Eigen::Vector3f& point,
+                           float tolerance_m,
+                           bool follow_surface) const {
   FieldOfView& fov = *field_of_view_;
   std::call_once(fov.image_once, [&] {
-    fov.nearest_range.assign(FieldOfView::kAzimuthBins * FieldOfView::kElevationBins, 0.f);
-    for (const Eigen::Vector3f& q : tree_.points()) {
-      const Eigen::Vector3f d = q - viewpoint_;
+    constexpr size_t kBins = FieldOfView::kAzimuthBins * FieldOfView::kElevationBins;
+    fov.nearest_range.assign(kBins, 0.f);
+    fov.nearest_index.assign(kBins, 0);
+    const PointSet& pts = tree_.points();
+    for (size_t i = 0; i < pts.size(); ++i) {
+      const Eigen::Vector3f d = pts[i] - viewpoint_;
       const float r = d.norm();
       if (!(r > 0)) continue;
-      float& nearest = fov.nearest_range[FieldOfView::Bin(d, r)];
-      if (nearest == 0.f || r < nearest) nearest = r;
+      const int bin = FieldOfView::Bin(d, r);
+      float& nearest = fov.nearest_range[bin];
+      if (nearest == 0.f || r < nearest) {
+        nearest = r;
+        fov.nearest_index[bin] = static_cast<uint32_t>(i);
+      }
     }
   });
   const Eigen::Vector3f d = point - viewpoint_;
   const float r = d.norm();
   if (!(r > 0)) return true;
-  const float nearest = fov.nearest_range[FieldOfView::Bin(d, r)];
-  return nearest == 0.f || r <= nearest * 1.02f + tolerance_m;
+  const int bin = FieldOfView::Bin(d, r);
+  const float nearest = fov.nearest_range[bin];
+  if (nearest == 0.f || r <= nearest * 1.02f + tolerance_m) return true;
+  if (!follow_surface) return false;
+  // The ray x = viewpoint + t d / r meets the plane n^T (x - q) = 0 of the nearest
+  // point q (normal n, oriented towards the viewpoint) at t = n^T (q - viewpoint) /
+  // (n^T d / r); from the front only when n^T d < 0 (then t > 0 as n^T (q - viewpoint) < 0).
+  const uint32_t index = fov.nearest_index[bin];
+  Eigen::Vector3f n;
+  float planarity = 0.f;
+  NormalAt(index, &n, &planarity);
+  if (planarity <= 0.f) return false;  // no normal: the nearest range decides
+  const float n_dot_d = n.dot(d);
+  if (!(n_dot_d < 0.f)) return true;  // the ray does not meet the plane from the front
+  const float t = n.dot(tree_.points()[index] - viewpoint_) * r / n_dot_d;
+  return r <= t * 1.02f + tolerance_m;
 }
 
 bool KdTreeTarget::InFieldOfView(const Eigen::Vector3f& point) const {
@@ -330,6 +356,7 @@ KdTreeTarget::KdTreeTarget(PointSet points,
   THROW_CHECK_OPTIONS(normal_options);
   normals_.normals.assign(tree_.size(), Eigen::Vector3f::Zero());
   normals_.planarity.assign(tree_.size(), 0.f);
+  contrast_.assign(tree_.size(), 0.f);
   state_ = std::make_unique<std::atomic<uint8_t>[]>(tree_.size());  // value-initialised: 0
   field_of_view_ = std::make_unique<FieldOfView>();
 }
@@ -345,6 +372,7 @@ KdTreeTarget::KdTreeTarget(PointSet points, std::vector<Eigen::Vector3f> normals
                                  normals.size()));
   }
   normals_.planarity.assign(normals.size(), 1.f);
+  contrast_.assign(normals.size(), 1.f);
   for (size_t i = 0; i < normals.size(); ++i) {
     const float norm = normals[i].norm();
     if (!std::isfinite(norm)) {
@@ -365,27 +393,39 @@ KdTreeTarget::KdTreeTarget(PointSet points, std::vector<Eigen::Vector3f> normals
 KdTreeTarget::~KdTreeTarget() = default;
 
 void KdTreeTarget::NormalAt(size_t index, Eigen::Vector3f* normal, float* planarity) const {
+  float contrast = 0.f;
+  NormalAt(index, normal, planarity, &contrast);
+}
+
+void KdTreeTarget::NormalAt(size_t index,
+                            Eigen::Vector3f* normal,
+                            float* planarity,
+                            float* contrast) const {
   THROW_CHECK_LT(index, tree_.size());
   std::atomic<uint8_t>& state = state_[index];
   uint8_t s = state.load(std::memory_order_acquire);
   if (s == kNormalReady) {
     *normal = normals_.normals[index];
     *planarity = normals_.planarity[index];
+    *contrast = contrast_[index];
     return;
   }
   Eigen::Vector3f n = Eigen::Vector3f::Zero();
   float p = 0.f;
-  EstimateNormalAt(tree_, index, normal_options_, viewpoint_, &n, &p);
+  float c = 0.f;
+  EstimateNormalAt(tree_, index, normal_options_, viewpoint_, &n, &p, &c);
   // One thread publishes; a thread that finds the slot busy keeps its own
   // (identical) result instead of waiting.
   if (s == kNormalUnknown &&
       state.compare_exchange_strong(s, kNormalBusy, std::memory_order_acquire)) {
     normals_.normals[index] = n;
     normals_.planarity[index] = p;
+    contrast_[index] = c;
     state.store(kNormalReady, std::memory_order_release);
   }
   *normal = n;
   *planarity = p;
+  *contrast = c;
 }
 
 size_t KdTreeTarget::NumNormalsEstimated() const {
@@ -403,8 +443,10 @@ bool KdTreeTarget::AcceptMatch(uint32_t index,
                                Eigen::Vector3f* target_normal) const {
   Eigen::Vector3f n;
   float planarity = 0.f;
-  NormalAt(index, &n, &planarity);
+  float contrast = 0.f;
+  NormalAt(index, &n, &planarity, &contrast);
   if (planarity <= 0.f || planarity < criteria.min_planarity) return false;
+  if (contrast < criteria.min_normal_contrast) return false;
   if (!normal.isZero() && std::abs(n.dot(normal)) < criteria.min_cos_normal_angle) return false;
   *target_point = tree_.points()[index];
   *target_normal = n;
@@ -540,7 +582,8 @@ LinearizationContext::LinearizationContext(const SE3& T, const IcpOptions& optio
       criteria{static_cast<float>(options.max_correspondence_distance_m),
                static_cast<float>(std::cos(options.max_normal_angle_deg * kDegToRad)),
                static_cast<float>(options.min_planarity), options.field_of_view_gate,
-               static_cast<float>(options.visibility_gate_m)},
+               static_cast<float>(options.visibility_gate_m), options.visibility_follows_surface,
+               static_cast<float>(options.min_normal_contrast)},
       kernel(RobustKernelFromString(options.kernel)),
       kernel_scale_m(options.kernel_scale_m) {}
 

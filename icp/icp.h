@@ -64,6 +64,15 @@ struct IcpOptions {
   double max_correspondence_distance_m = 1.0;  // reject |Tp - q| above this (m)
   double max_normal_angle_deg = 45.0;        // reject when source/target normals differ more (deg; used when source normals are given)
   double min_planarity = 0.0;                // ignore target points with lower planarity, [0, 1]
+  // KdTreeTarget with estimated normals only: ignore target points whose normal is
+  // not determined by their neighbourhood, i.e. with contrast (l1 - l0) / l1 below
+  // this (l0 <= l1 <= l2 the eigenvalues of the neighbourhood's covariance), [0, 1]. Unlike
+  // min_planarity ((l1 - l0) / l2) it does not depend on the neighbourhood's length
+  // l2: the neighbours of a far floor point on one LiDAR ring (a long thin line, curved,
+  // thickened by the range noise mostly along the ray) have planarity near 0 but a
+  // determined normal (l0 / l1 ~ sin^2 of the grazing angle), while a straight line
+  // (l0 ~ l1) has none. 0 = off.
+  double min_normal_contrast = 0.0;
   std::string kernel = "huber";              // none | huber | cauchy | geman_mcclure
   double kernel_scale_m = 0.1;               // robust kernel scale k (m)
   double convergence_rotation_rad = 1e-4;    // stop when |omega| of a step is below (rad)
@@ -102,6 +111,15 @@ struct IcpOptions {
   // 95 % ellipsoid from 55 to 72 % (docs/BENCHMARKS.md, "Bayesian ICP covariance
   // calibration").
   double visibility_gate_m = 0.0;
+  // With visibility_gate_m > 0: a source point farther than that bound is still visible
+  // when it is not behind the surface element (point and normal) of its bin's nearest
+  // target point: its range r <= 1.02 t + visibility_gate_m, with t the range at which
+  // its ray meets that element's plane (infinite when the ray does not meet the plane
+  // from the front). Why: a floor or ceiling seen at grazing incidence spans a long range
+  // interval within one bin (at range r from a sensor h above it, r^2 / h per radian of
+  // elevation: 13.4 to 16.0 m across one 1 deg bin at 15 m, h = 1.4 m), so the nearest
+  // range alone hides most of the bin's own surface.
+  bool visibility_follows_surface = false;
   bool Check() const;
 };
 
@@ -112,6 +130,8 @@ struct MatchCriteria {
   float min_planarity = 0.f;         // target points with lower planarity are not matched
   bool field_of_view_gate = false;   // IcpOptions::field_of_view_gate (KdTreeTarget)
   float visibility_gate_m = 0.f;     // IcpOptions::visibility_gate_m (KdTreeTarget; 0 = off)
+  bool visibility_follows_surface = false;  // IcpOptions::visibility_follows_surface
+  float min_normal_contrast = 0.f;   // IcpOptions::min_normal_contrast (KdTreeTarget)
   bool HasViewGates() const { return field_of_view_gate || visibility_gate_m > 0.f; }
 };
 
@@ -216,6 +236,8 @@ class KdTreeTarget : public IcpTarget {
   // Unit normal (zero when invalid) and planarity of target point `index`,
   // estimated now unless cached.
   void NormalAt(size_t index, Eigen::Vector3f* normal, float* planarity) const;
+  // ... and its contrast (l1 - l0) / l1 (EstimateNormalAt; 1 for given normals).
+  void NormalAt(size_t index, Eigen::Vector3f* normal, float* planarity, float* contrast) const;
   // How many normals have been estimated and cached so far.
   size_t NumNormalsEstimated() const;
   // The neighbourhood options of the estimated normals (defaults when normals were given).
@@ -233,17 +255,19 @@ class KdTreeTarget : public IcpTarget {
   // visibility_gate_m, each computed on first use.
   struct FieldOfView;
   bool InFieldOfView(const Eigen::Vector3f& point) const;
-  bool Visible(const Eigen::Vector3f& point, float tolerance_m) const;
+  bool Visible(const Eigen::Vector3f& point, float tolerance_m, bool follow_surface) const;
   // The gates of `criteria` that apply to `point` (true: it may be matched).
   bool InView(const Eigen::Vector3f& point, const MatchCriteria& criteria) const {
     return (!criteria.field_of_view_gate || InFieldOfView(point)) &&
-           (criteria.visibility_gate_m <= 0.f || Visible(point, criteria.visibility_gate_m));
+           (criteria.visibility_gate_m <= 0.f ||
+            Visible(point, criteria.visibility_gate_m, criteria.visibility_follows_surface));
   }
   KdTree tree_;
   NormalOptions normal_options_;
   Eigen::Vector3f viewpoint_ = Eigen::Vector3f::Zero();
   std::unique_ptr<FieldOfView> field_of_view_;
   mutable Normals normals_;  // written once per point under state_
+  mutable std::vector<float> contrast_;  // (l1 - l0) / l1 per point, written with normals_
   mutable std::unique_ptr<std::atomic<uint8_t>[]> state_;  // 0 unknown, 1 being computed, 2 ready
 };
 

@@ -262,6 +262,107 @@ TEST(KdTreeTarget, VisibilityGate) {
   EXPECT_FALSE(bad.Check());
 }
 
+// A spinning LiDAR 1.4 m above a floor (z = -1.4 m; rings every 1 deg from -2.5 to
+// -19.5 deg, one in each 1 deg elevation bin of the range image; 0.2 deg azimuth
+// steps), seen from `origin`, with an optional wall patch (x = 4 m, |y| <= 1 m,
+// z <= 1 m) in front of the origin: the first surface each ray meets.
+PointSet ScanFloor(const Eigen::Vector3f& origin, bool with_wall) {
+  PointSet points;
+  for (int ring = 0; ring < 18; ++ring) {
+    const double elevation = (-2.5 - ring) * M_PI / 180.0;
+    for (int a = 0; a < 1800; ++a) {
+      const double azimuth = a * 0.2 * M_PI / 180.0;
+      const Eigen::Vector3f u(static_cast<float>(std::cos(elevation) * std::cos(azimuth)),
+                              static_cast<float>(std::cos(elevation) * std::sin(azimuth)),
+                              static_cast<float>(std::sin(elevation)));
+      float t = (-1.4f - origin.z()) / u.z();
+      if (with_wall && u.x() > 0) {
+        const float t_wall = (4.f - origin.x()) / u.x();
+        const Eigen::Vector3f w = origin + t_wall * u;
+        if (t_wall > 0 && t_wall < t && std::abs(w.y()) <= 1.f && w.z() <= 1.f) t = t_wall;
+      }
+      if (t < 30.f) points.push_back(origin + t * u);
+    }
+  }
+  return points;
+}
+
+// IcpOptions::visibility_follows_surface: the floor points of a second scan (6 m ahead)
+// that lie 8-20 m from the target's sensor are visible to it, but at that grazing
+// incidence the nearest-range gate (r <= 1.02 nearest + 0.1 m per 0.5 x 1 deg bin)
+// rejects those beyond its bin's ring (30 % here); following the surface keeps them
+// all, and still rejects the floor points hidden behind a wall.
+TEST(KdTreeTarget, VisibilityGateFollowsGrazingSurfaces) {
+  const KdTreeTarget target(ScanFloor(Eigen::Vector3f::Zero(), false), NormalOptions{20, 1.0});
+  const MatchCriteria open{5.f, 0.f, 0.f};
+  MatchCriteria nearest_range = open;
+  nearest_range.visibility_gate_m = 0.1f;
+  MatchCriteria follows = nearest_range;
+  follows.visibility_follows_surface = true;
+  int total = 0, kept_nearest = 0, kept_follows = 0;
+  Eigen::Vector3f q, n;
+  for (const Eigen::Vector3f& p : ScanFloor(Eigen::Vector3f(6.f, 0.f, 0.f), false)) {
+    const float r = p.norm();
+    if (r < 8.f || r > 20.f || !target.Match(p, Eigen::Vector3f::Zero(), open, &q, &n)) continue;
+    ++total;
+    kept_nearest += target.Match(p, Eigen::Vector3f::Zero(), nearest_range, &q, &n) ? 1 : 0;
+    kept_follows += target.Match(p, Eigen::Vector3f::Zero(), follows, &q, &n) ? 1 : 0;
+  }
+  ASSERT_GT(total, 1000);
+  EXPECT_LT(kept_nearest, 0.8 * total);  // 70 %: the scene exercises the defect
+  EXPECT_GT(kept_follows, 0.98 * total);
+  // Behind a wall: floor points the walled target cannot see.
+  const KdTreeTarget walled(ScanFloor(Eigen::Vector3f::Zero(), true), NormalOptions{20, 1.0});
+  int hidden = 0, hidden_kept = 0;
+  for (float x = 6.f; x <= 12.f; x += 0.25f) {
+    for (float y = -0.5f; y <= 0.5f; y += 0.25f) {
+      const Eigen::Vector3f p(x, y, -1.4f);
+      if (!walled.Match(p, Eigen::Vector3f::Zero(), open, &q, &n)) continue;
+      ++hidden;
+      hidden_kept += walled.Match(p, Eigen::Vector3f::Zero(), follows, &q, &n) ? 1 : 0;
+    }
+  }
+  ASSERT_GT(hidden, 50);
+  EXPECT_EQ(hidden_kept, 0);
+}
+
+// IcpOptions::min_normal_contrast: far floor points whose neighbours lie on one ring
+// (planarity (l1 - l0) / l2 below 0.1) have a determined, vertical normal and pass a
+// contrast gate of 0.5; points on a straight line do not.
+TEST(KdTreeTarget, NormalContrastKeepsRingLineNormals) {
+  const KdTreeTarget target(ScanFloor(Eigen::Vector3f::Zero(), false), NormalOptions{20, 1.0});
+  int far = 0, low_planarity = 0, contrast_kept = 0;
+  double max_tilt_deg = 0;
+  for (size_t i = 0; i < target.size(); i += 7) {
+    const Eigen::Vector3f& p = target.tree().points()[i];
+    if (p.head<2>().norm() < 12.f) continue;
+    Eigen::Vector3f n;
+    float planarity = 0.f, contrast = 0.f;
+    target.NormalAt(i, &n, &planarity, &contrast);
+    ++far;
+    low_planarity += planarity < 0.1f ? 1 : 0;
+    if (contrast >= 0.5f) {
+      ++contrast_kept;
+      const double tilt_deg = std::acos(std::min(1.f, std::abs(n.z()))) * 180.0 / M_PI;
+      max_tilt_deg = std::max(max_tilt_deg, tilt_deg);
+    }
+  }
+  ASSERT_GT(far, 500);
+  EXPECT_GT(low_planarity, 0.9 * far);
+  EXPECT_GT(contrast_kept, 0.95 * far);
+  EXPECT_LT(max_tilt_deg, 1.0);
+  PointSet line;
+  for (int i = 0; i < 100; ++i) line.emplace_back(0.02f * i, 1.f, 0.f);
+  const KdTreeTarget straight(line, NormalOptions{20, 1.0});
+  Eigen::Vector3f n;
+  float planarity = 0.f, contrast = 0.f;
+  straight.NormalAt(50, &n, &planarity, &contrast);
+  EXPECT_LT(contrast, 0.5f);
+  IcpOptions bad;
+  bad.min_normal_contrast = 1.5;
+  EXPECT_FALSE(bad.Check());
+}
+
 TEST(RegisterPointToPlane, InnerIterationsKeepTheFixedPoint) {
   const SE3 truth(so3::Exp(Vec3(0.1, -0.12, 0.15)), Vec3(0.4, -0.25, 0.2));
   const auto [target, source] = SampleNoisyRoomPair(3000, 1500, truth);

@@ -22,7 +22,8 @@ bool EstimateNormalAt(const KdTree& tree,
                       const NormalOptions& options,
                       const Eigen::Vector3f& viewpoint,
                       Eigen::Vector3f* normal,
-                      float* planarity) {
+                      float* planarity,
+                      float* contrast) {
   constexpr size_t kMaxNeighbors = 64;
   const PointSet& pts = tree.points();
   const size_t k = std::min(static_cast<size_t>(options.num_neighbors), kMaxNeighbors);
@@ -53,6 +54,10 @@ bool EstimateNormalAt(const KdTree& tree,
   if (nf.dot(viewpoint - pts[index]) < 0) nf = -nf;
   *normal = nf.normalized();
   *planarity = static_cast<float>(std::max(0.0, (l(1) - l(0)) / l(2)));
+  if (contrast != nullptr) {
+    // l1 at the rounding level of l2 (a straight line): no determined normal.
+    *contrast = l(1) > 1e-9 * l(2) ? static_cast<float>(std::max(0.0, (l(1) - l(0)) / l(1))) : 0.f;
+  }
   return true;
 }
 

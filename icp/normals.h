@@ -32,13 +32,17 @@ struct Normals {
 
 // Normal and planarity of point `index` of `tree` (the per-point work of
 // EstimateNormals). Returns false (and leaves the outputs alone) when the point
-// has fewer than 3 usable neighbours or a degenerate neighbourhood.
+// has fewer than 3 usable neighbours or a degenerate neighbourhood. When given,
+// *contrast = (l1 - l0) / l1 in [0, 1]: how well the normal direction is determined
+// (the ratio of the two smallest eigenvalues), independent of the neighbourhood's
+// extent l2; 0 when l1 <= 1e-9 l2 (a straight line).
 bool EstimateNormalAt(const KdTree& tree,
                       size_t index,
                       const NormalOptions& options,
                       const Eigen::Vector3f& viewpoint,
                       Eigen::Vector3f* normal,
-                      float* planarity);
+                      float* planarity,
+                      float* contrast = nullptr);
 
 // Normals of `tree.points()`. Throws InternalError if options fail Check().
 Normals EstimateNormals(const KdTree& tree,

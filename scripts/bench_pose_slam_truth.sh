@@ -5,8 +5,8 @@
 # does not hold. Also reports the kept Bayesian ICP pairs against ground truth:
 # NEES per pair and the mean (signed) error per index-step bin, which shows a
 # bias shared by the pairs (independent errors average to 0 over hundreds of pairs).
-# The last runs repeat the ICP pairs without the Bayesian ICP's min_planarity and /
-# or visibility gate (the association options the shared pitch bias comes from), and
+# The last runs repeat the ICP pairs with the association options the shared pitch bias
+# came from (min_planarity 0.1, the nearest-range visibility gate), and without gates, and
 # on a hall scene the share of visible floor / ceiling points the visibility gate's
 # range image rejects (1 deg elevation bins as in icp.cc, and 0.1 deg for contrast), and
 # the normals of the far floor / ceiling that min_planarity 0.1 keeps and drops.
@@ -234,15 +234,20 @@ run imu_exact_odometry --PoseSlam.use_icp_pairs 0 --PoseSlam.use_zero_velocity 0
   --PoseSlam.piecewise_bias 0 $NO_EXTRA $EXACT_ODOMETRY
 run imu --PoseSlam.use_icp_pairs 0 --PoseSlam.use_zero_velocity 0 --PoseSlam.piecewise_bias 0
 run icp_pairs --PoseSlam.use_imu 0 --PoseSlam.use_zero_velocity 0
-# The pair bias by association option (Bayesian defaults: min_planarity 0.1, visibility gate 0.1 m).
-run icp_pairs_min_planarity_0 --PoseSlam.use_imu 0 --PoseSlam.use_zero_velocity 0 \
-  --Bayesian.min_planarity 0
-run icp_pairs_visibility_gate_0 --PoseSlam.use_imu 0 --PoseSlam.use_zero_velocity 0 \
-  --Bayesian.visibility_gate_m 0
-run icp_pairs_both_0 --PoseSlam.use_imu 0 --PoseSlam.use_zero_velocity 0 \
-  --Bayesian.min_planarity 0 --Bayesian.visibility_gate_m 0
+# The pair bias by association option (Bayesian defaults: min_normal_contrast 0.5, no
+# min_planarity, visibility gate 0.1 m following the surface; the association before
+# them: min_planarity 0.1 and the nearest-range visibility gate).
+run icp_pairs_nearest_range_gate --PoseSlam.use_imu 0 --PoseSlam.use_zero_velocity 0 \
+  --Bayesian.visibility_follows_surface 0
+run icp_pairs_min_planarity_0.1 --PoseSlam.use_imu 0 --PoseSlam.use_zero_velocity 0 \
+  --Bayesian.min_planarity 0.1 --Bayesian.min_normal_contrast 0
+run icp_pairs_previous_association --PoseSlam.use_imu 0 --PoseSlam.use_zero_velocity 0 \
+  --Bayesian.min_planarity 0.1 --Bayesian.min_normal_contrast 0 \
+  --Bayesian.visibility_follows_surface 0
+run icp_pairs_no_gates --PoseSlam.use_imu 0 --PoseSlam.use_zero_velocity 0 \
+  --Bayesian.min_normal_contrast 0 --Bayesian.visibility_gate_m 0
 if grep -q "scene: hall" "$SEQ/simulate_config.yaml" 2>/dev/null; then
-  echo "visibility gate on visible floor / ceiling (pairs 20 keyframes apart; 1 = the icp.cc range image):"
+  echo "nearest-range visibility gate on visible floor / ceiling (pairs 20 keyframes apart; 1 = the icp.cc range image):"
   /usr/bin/python3 "$TOOLS" gate "$SEQ" "$LIO" 20 1
   /usr/bin/python3 "$TOOLS" gate "$SEQ" "$LIO" 20 10
   echo "target normals of far floor / ceiling kept and dropped by min_planarity 0.1:"

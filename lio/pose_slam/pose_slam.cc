@@ -138,6 +138,15 @@ Mat9 UnmodelledImuCovariance(const std::vector<ImuSample>& imu,
 
 }  // namespace
 
+BayesianIcpOptions PoseSlamBayesianIcpOptions() {
+  BayesianIcpOptions options;
+  options.icp.min_planarity = 0.0;  // why: see pose_slam.h
+  options.icp.min_normal_contrast = 0.5;
+  options.icp.visibility_follows_surface = true;
+  options.noise_sigma_scale = 1.168;
+  return options;
+}
+
 bool PoseSlamOptions::Check() const {
   CHECK_OPTION_GE(knn, 1);
   CHECK_OPTION_GE(min_index_step, 1);
