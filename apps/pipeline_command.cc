@@ -669,7 +669,8 @@ void Pipeline::RunStage(StageState* stage) {
                 "--reference_path",
                 sequence_,
                 "--alignment",
-                "se3",
+                // Ours is metric (SE(3)); stock COLMAP's scale is arbitrary (Sim(3)).
+                model == "global_mapper" ? "se3" : "sim3",
                 "--output_path",
                 JoinPaths(dir, model + "_cameras.json")});
       Append("model_evaluator", &a);
@@ -960,10 +961,11 @@ void Pipeline::WriteReport(const json& report) {
   }
   md +=
       "\n## Models side by side\n\n| method | seconds | registered / images | points | "
-      "reproj. [px] | position error mean / max [mm] | rotation error mean / max [deg] |\n"
-      "|---|---:|---:|---:|---:|---:|---:|\n";
+      "reproj. [px] | alignment | position error mean / max [mm] | rotation error mean / max "
+      "[deg] |\n"
+      "|---|---:|---:|---:|---:|---|---:|---:|\n";
   for (const json& row : report["comparison"]) {
-    std::string position = "-", rotation = "-";
+    std::string position = "-", rotation = "-", alignment = "-";
     if (row.contains("cameras") && row["cameras"].is_object()) {
       const json& c = row["cameras"];
       const auto mm = [](const json& v) {
@@ -972,23 +974,28 @@ void Pipeline::WriteReport(const json& report) {
       position = mm(c["position_error_m"]["mean"]) + " / " + mm(c["position_error_m"]["max"]);
       rotation =
           Num(c["rotation_error_deg"]["mean"], 4) + " / " + Num(c["rotation_error_deg"]["max"], 4);
+      alignment = c.value("alignment", json()) == "sim3"
+                      ? "Sim(3), scale " + Num(c.value("scale", json()), 3)
+                      : "SE(3)";
     } else if (row.contains("cameras")) {
       position = row["cameras"].get<std::string>();
     }
-    md += fmt::format("| {} | {} | {} / {} | {} | {} | {} | {} |\n",
+    md += fmt::format("| {} | {} | {} / {} | {} | {} | {} | {} | {} |\n",
                       row["method"].get<std::string>(),
                       Num(row["seconds"], 1),
                       Num(row.value("registered_images", json()), 0),
                       Num(row.value("images", json()), 0),
                       Num(row.value("points", json()), 0),
                       Num(row.value("mean_reprojection_error_px", json()), 3),
+                      alignment,
                       position,
                       rotation);
   }
   md +=
-      "\nCamera errors: `lisfm model_evaluator --alignment se3` against the sequence's ground "
-      "truth (no scale: stock COLMAP's models have an arbitrary scale, which shows in their "
-      "position errors).\n";
+      "\nCamera errors: `lisfm model_evaluator` against the sequence's ground truth (true "
+      "capture times, truth/rig.yaml). lisfm's model is metric and aligned by SE(3) (no scale); "
+      "stock COLMAP's models have an arbitrary scale and are aligned by Sim(3), whose scale is "
+      "shown (1 = metric).\n";
   if (report.contains("covisibility_recall")) {
     const json& r = report["covisibility_recall"];
     md += fmt::format(

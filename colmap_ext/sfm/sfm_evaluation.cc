@@ -169,12 +169,16 @@ Quat GeodesicMedian(const std::vector<Quat>& rotations) {
   return q;
 }
 
-// Name lookup: full name first, basename otherwise (must be unique).
+// Name lookup: full name first; the basename otherwise (it must be unique),
+// unless both the name and every indexed name carry a folder: then the folder
+// is part of the identity (camK/data/<ns>.png of a multi-camera rig share
+// basenames across cameras) and an absent full name is absent.
 class NameIndex {
  public:
   explicit NameIndex(const std::vector<NamedPose>& poses) {
     for (size_t i = 0; i < poses.size(); ++i) {
       full_[poses[i].name] = i;
+      if (!HasFolder(poses[i].name)) all_have_folders_ = false;
       const std::string base = Basename(poses[i].name);
       auto it = base_.find(base);
       if (it == base_.end()) {
@@ -188,6 +192,7 @@ class NameIndex {
   long Find(const std::string& name) const {
     const auto full = full_.find(name);
     if (full != full_.end()) return static_cast<long>(full->second);
+    if (all_have_folders_ && HasFolder(name)) return -1;
     const auto base = base_.find(Basename(name));
     if (base == base_.end()) return -1;
     if (base->second == kAmbiguous) {
@@ -198,7 +203,10 @@ class NameIndex {
   }
 
  private:
+  static bool HasFolder(const std::string& name) { return name.find('/') != std::string::npos; }
+
   static constexpr size_t kAmbiguous = std::numeric_limits<size_t>::max();
+  bool all_have_folders_ = true;
   std::unordered_map<std::string, size_t> full_;
   std::unordered_map<std::string, size_t> base_;
 };

@@ -61,6 +61,24 @@ Sim3 SomeSimilarity() {
   return s;
 }
 
+TEST(SfmEvaluation, RigImagesWithSharedBasenamesMatchByFullName) {
+  // Two cameras of one rig write the same <ns>.png under their own folders;
+  // the estimate registered only cam0's images: cam1's are unregistered,
+  // not ambiguous.
+  std::vector<NamedPose> reference = RingCameras(6);
+  for (size_t i = 0; i < reference.size(); ++i) {
+    reference[i].name = "cam" + std::to_string(i % 2) + "/data/" + std::to_string(i / 2) + ".png";
+  }
+  std::vector<NamedPose> estimate;
+  for (const NamedPose& p : reference) {
+    if (p.name.rfind("cam0/", 0) == 0) estimate.push_back(p);
+  }
+  const SfmEvaluation ev = EvaluatePoses(estimate, reference, SfmEvaluationOptions());
+  EXPECT_EQ(ev.num_registered, 3u);
+  EXPECT_EQ(ev.num_unmatched_estimated, 0u);
+  EXPECT_LT(ev.rotation_error_deg.max, 1e-6);
+}
+
 TEST(SfmEvaluation, SimilarityTransformedModelHasZeroErrors) {
   const std::vector<NamedPose> reference = RingCameras(10);
   std::vector<NamedPose> estimate = TransformWorld(reference, SomeSimilarity());
