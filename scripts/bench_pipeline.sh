@@ -82,10 +82,11 @@ for d, report, by in rows:
     print(f"| {d} s | {images} | {pairs} | {cells} | {total:.1f} |")
 
 d, report, by = rows[0]
-print(f"\nModels side by side ({d} s; camera errors after SE(3) alignment, no scale)\n")
-print("| method | seconds | registered / images | points | reproj. [px] | "
+print(f"\nModels side by side ({d} s; camera errors against ground truth: lisfm's model by SE(3), "
+      "stock COLMAP's by Sim(3))\n")
+print("| method | seconds | registered / images | points | reproj. [px] | alignment | "
       "position error mean / max [mm] | rotation error mean / max [deg] |")
-print("|---|---:|---:|---:|---:|---:|---:|")
+print("|---|---:|---:|---:|---:|---|---:|---:|")
 front = sum(by[s]["seconds"] for s in ["feature_extractor", "matches_importer"])
 for row in report["comparison"]:
     seconds = row["seconds"]
@@ -98,7 +99,9 @@ for row in report["comparison"]:
         seconds += by["feature_extractor"]["seconds"]
         note = " (features + exhaustive matching + mapper)"
     cams = row.get("cameras")
+    align = "-"
     if isinstance(cams, dict):
+        align = ("Sim(3), scale %.3f" % cams["scale"]) if cams.get("alignment") == "sim3" else "SE(3)"
         p = cams["position_error_m"]; r = cams["rotation_error_deg"]
         pos = f"{p['mean']*1000:.2f} / {p['max']*1000:.2f}"
         rot = f"{r['mean']:.4f} / {r['max']:.4f}"
@@ -106,7 +109,7 @@ for row in report["comparison"]:
         pos, rot = (cams or "-"), "-"
     print(f"| {row['method']}{note} | {seconds:.1f} | {row.get('registered_images', '-')} / "
           f"{row.get('images', '-')} | {row.get('points', '-')} | "
-          f"{row.get('mean_reprojection_error_px', float('nan')):.3f} | {pos} | {rot} |")
+          f"{row.get('mean_reprojection_error_px', float('nan')):.3f} | {align} | {pos} | {rot} |")
 if "covisibility_recall" in report:
     r = report["covisibility_recall"]
     print(f"\nCo-visibility recall: {r['listed']} of {r['exhaustive_verified_pairs']} pairs "
