@@ -3,6 +3,7 @@
 // layout of a preset in configs/bags/ (importers/bag.h).
 #include <fmt/format.h>
 
+#include <sstream>
 #include <string>
 
 #include "apps/commands.h"
@@ -41,10 +42,59 @@ BagPreset LoadPreset(const std::string& preset) {
   return p;
 }
 
+// Applies `--topics role=topic,...` to a preset: role imu, lidarK or camK
+// (K from 0; K equal to the preset's count appends a topic). An empty list
+// leaves the preset as it is.
+void ApplyTopicOverrides(const std::string& list, BagPreset* preset) {
+  std::stringstream in(list);
+  for (std::string item; std::getline(in, item, ',');) {
+    if (item.empty()) continue;
+    const size_t eq = item.find('=');
+    const std::string role = item.substr(0, eq);
+    const std::string topic = eq == std::string::npos ? "" : item.substr(eq + 1);
+    if (topic.empty()) {
+      throw UsageError(fmt::format("--topics: '{}' is not role=topic", item));
+    }
+    if (role == "imu") {
+      preset->imu_topic = topic;
+      continue;
+    }
+    std::vector<std::string>* topics = nullptr;
+    std::string digits;
+    if (role.rfind("lidar", 0) == 0) {
+      topics = &preset->lidar_topics;
+      digits = role.substr(5);
+    } else if (role.rfind("cam", 0) == 0) {
+      topics = &preset->camera_topics;
+      digits = role.substr(3);
+    }
+    if (topics == nullptr || digits.empty() ||
+        digits.find_first_not_of("0123456789") != std::string::npos || digits.size() > 3) {
+      throw UsageError(
+          fmt::format("--topics: unknown role '{}' (imu, lidarK or camK, K from 0)", role));
+    }
+    const size_t k = std::stoul(digits);
+    if (k > topics->size()) {
+      throw UsageError(fmt::format("--topics: {} skips an index: preset {} has {} such topics, "
+                                   "so the next one is {}{}",
+                                   role,
+                                   preset->name,
+                                   topics->size(),
+                                   role[0] == 'l' ? "lidar" : "cam",
+                                   topics->size()));
+    }
+    if (k == topics->size()) {
+      topics->push_back(topic);
+    } else {
+      (*topics)[k] = topic;
+    }
+  }
+}
+
 }  // namespace
 
 int RunBagImporter(int argc, char** argv) {
-  std::string input_path, output_path, rig_path, preset = "hilti2022";
+  std::string input_path, output_path, rig_path, preset = "hilti2022", topics;
   bool overwrite = false;
   BagImportOptions import;
   OptionManager options("lisfm bag_importer",
@@ -58,6 +108,10 @@ int RunBagImporter(int argc, char** argv) {
                     "rig YAML or HILTI/Kalibr calibration folder written as rig.yaml (default: "
                     "configs/hilti2022.yaml)");
   options.AddString("preset", &preset, kPresetHelp);
+  options.AddString("topics",
+                    &topics,
+                    "comma list role=topic replacing the preset's topics: imu, lidarK, camK (K "
+                    "from 0; the next K appends), e.g. imu=/imu,cam0=/left/image_raw");
   options.AddDouble("camera_rate",
                     &import.camera_rate_hz,
                     "keep camera frames at most this often per camera (Hz; a frame is kept "
@@ -65,7 +119,8 @@ int RunBagImporter(int argc, char** argv) {
                     OptionRange::AtLeast(0));
   options.AddBool("overwrite", &overwrite, "replace an earlier output at --output_path");
   if (!options.Parse(argc, argv)) return 0;
-  const BagPreset bag_preset = LoadPreset(preset);
+  BagPreset bag_preset = LoadPreset(preset);
+  ApplyTopicOverrides(topics, &bag_preset);
   if (rig_path.empty()) rig_path = LISFM_DEFAULT_RIG_PATH;
   // A rig YAML is copied verbatim unless its camera time shifts are applied to
   // the stamps; a calibration folder is converted once.

@@ -49,6 +49,35 @@ TEST(BagCommandsTest, ExportImportThenLioGivesTheSameTrajectory) {
   const std::string b = ReadFile(dir.File("lio_back/trajectory.txt"));
   EXPECT_GT(a.size(), 1000u);
   EXPECT_EQ(a, b);
+
+  // --topics replaces the preset's topics: topics that are in the bag import
+  // ...
+  const std::string rig = " --rig_path " + dir.File("seq/rig.yaml");
+  ASSERT_EQ(test::RunCommand(bin + " bag_importer --preset velodyne --input_path " +
+                                 dir.File("rec.bag") + rig + " --output_path " +
+                                 dir.File("renamed") +
+                                 " --topics imu=/imu/data,cam1=/cam1/image_raw",
+                             &out),
+            0)
+      << out;
+  // ... and a renamed topic that is not in the bag is the usual missing-topic error.
+  EXPECT_EQ(test::RunCommand(bin + " bag_importer --preset velodyne --input_path " +
+                                 dir.File("rec.bag") + rig + " --output_path " +
+                                 dir.File("o") + " --topics imu=/alphasense/imu",
+                             &out),
+            1);
+  EXPECT_NE(out.find("topic /alphasense/imu"), std::string::npos) << out;
+  EXPECT_FALSE(fs::exists(dir.File("o")));
+  for (const std::string bad : {"gyro=/x", "imu", "lidar3=/x", "camx=/x"}) {
+    EXPECT_EQ(test::RunCommand(bin + " bag_importer --preset velodyne --input_path " +
+                                   dir.File("rec.bag") + " --output_path " + dir.File("o") +
+                                   " --topics " + bad,
+                               &out),
+              2)
+        << bad;
+    EXPECT_NE(out.find("error: --topics"), std::string::npos) << bad << ": " << out;
+    EXPECT_FALSE(fs::exists(dir.File("o")));
+  }
 }
 
 TEST(BagCommandsTest, BadInputIsOneErrorAndNoOutputFolder) {
