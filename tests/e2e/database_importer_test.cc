@@ -30,6 +30,35 @@ namespace {
 namespace fs = std::filesystem;
 constexpr double kDegToRad = M_PI / 180.0;
 
+// Copies the importer output's database.db (folder `o`) to `db` and runs stock
+// COLMAP on it: CPU SIFT (max_features per image) for o/image_list.txt from
+// image_path, then matching of the pairs in o/pairs.txt.
+void StockFeaturesAndMatches(const std::string& o,
+                             const std::string& image_path,
+                             const std::string& db,
+                             int max_features,
+                             std::string* out) {
+  const std::string env = "QT_QPA_PLATFORM=offscreen ";
+  fs::copy_file(o + "/database.db", db);
+  ASSERT_EQ(test::RunCommand(env + "colmap feature_extractor --database_path " + db +
+                                 " --image_path " + image_path + " --image_list_path " + o +
+                                 "/image_list.txt --SiftExtraction.use_gpu 0"
+                                 " --SiftExtraction.num_threads 2"
+                                 " --SiftExtraction.max_num_features " +
+                                 std::to_string(max_features) +
+                                 " --SiftExtraction.first_octave 0 2>&1",
+                             out),
+            0)
+      << *out;
+  ASSERT_EQ(test::RunCommand(env + "colmap matches_importer --database_path " + db +
+                                 " --match_list_path " + o +
+                                 "/pairs.txt --match_type pairs"
+                                 " --SiftMatching.use_gpu 0 --SiftMatching.num_threads 2 2>&1",
+                             out),
+            0)
+      << *out;
+}
+
 class DatabaseImporterTest : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
@@ -117,25 +146,8 @@ TEST_F(DatabaseImporterTest, StockColmapAndGlobalMapperOnTheDatabase) {
   }
 
   // Stock COLMAP: features for the listed images, matches for the listed pairs.
-  const std::string env = "QT_QPA_PLATFORM=offscreen ";
   const std::string db = dir_->File("work.db");
-  fs::copy_file(o + "/database.db", db);
-  ASSERT_EQ(test::RunCommand(env + "colmap feature_extractor --database_path " + db +
-                                 " --image_path " + Seq() + " --image_list_path " + o +
-                                 "/image_list.txt --SiftExtraction.use_gpu 0"
-                                 " --SiftExtraction.num_threads 2"
-                                 " --SiftExtraction.max_num_features 1024"
-                                 " --SiftExtraction.first_octave 0 2>&1",
-                             &out),
-            0)
-      << out;
-  ASSERT_EQ(test::RunCommand(env + "colmap matches_importer --database_path " + db +
-                                 " --match_list_path " + o +
-                                 "/pairs.txt --match_type pairs"
-                                 " --SiftMatching.use_gpu 0 --SiftMatching.num_threads 2 2>&1",
-                             &out),
-            0)
-      << out;
+  ASSERT_NO_FATAL_FAILURE(StockFeaturesAndMatches(o, Seq(), db, 1024, &out));
   std::set<std::pair<std::string, std::string>> listed;
   {
     std::ifstream pairs(o + "/pairs.txt");
@@ -326,25 +338,8 @@ TEST(DatabaseImporterHilti, RealImagesRegisterWithTheRealRig) {
     }
   }
   EXPECT_EQ(ReadLidarConstraints(o + "/constraints.txt").size(), 3u);
-  const std::string env = "QT_QPA_PLATFORM=offscreen ";
   const std::string db = dir.File("work.db");
-  fs::copy_file(o + "/database.db", db);
-  ASSERT_EQ(test::RunCommand(env + "colmap feature_extractor --database_path " + db +
-                                 " --image_path " + o + "/images --image_list_path " + o +
-                                 "/image_list.txt --SiftExtraction.use_gpu 0"
-                                 " --SiftExtraction.num_threads 2"
-                                 " --SiftExtraction.max_num_features 2048"
-                                 " --SiftExtraction.first_octave 0 2>&1",
-                             &out),
-            0)
-      << out;
-  ASSERT_EQ(test::RunCommand(env + "colmap matches_importer --database_path " + db +
-                                 " --match_list_path " + o +
-                                 "/pairs.txt --match_type pairs"
-                                 " --SiftMatching.use_gpu 0 --SiftMatching.num_threads 2 2>&1",
-                             &out),
-            0)
-      << out;
+  ASSERT_NO_FATAL_FAILURE(StockFeaturesAndMatches(o, o + "/images", db, 2048, &out));
   ASSERT_EQ(test::RunCommand(
                 test::LisfmBinary() + " global_mapper --database_path " + db + " --image_path " +
                     o + "/images --output_path " + dir.File("sparse") + " --rig_path " + o +
