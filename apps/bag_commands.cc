@@ -25,7 +25,7 @@ namespace lisfm {
 namespace {
 
 constexpr char kPresetHelp[] =
-    "topic preset: a name in configs/bags/ (hilti2022, velodyne) or a preset YAML path";
+    "topic preset: a name in configs/bags/ (hilti2022, hilti2021, velodyne) or a preset YAML path";
 
 // A preset name (configs/bags/<name>.yaml) or a path to a preset YAML.
 BagPreset LoadPreset(const std::string& preset) {
@@ -106,7 +106,7 @@ int RunBagImporter(int argc, char** argv) {
   options.AddString("rig_path",
                     &rig_path,
                     "rig YAML or HILTI/Kalibr calibration folder written as rig.yaml (default: "
-                    "configs/hilti2022.yaml)");
+                    "configs/hilti2021.yaml with --preset hilti2021, else configs/hilti2022.yaml)");
   options.AddString("preset", &preset, kPresetHelp);
   options.AddString("topics",
                     &topics,
@@ -121,7 +121,10 @@ int RunBagImporter(int argc, char** argv) {
   if (!options.Parse(argc, argv)) return 0;
   BagPreset bag_preset = LoadPreset(preset);
   ApplyTopicOverrides(topics, &bag_preset);
-  if (rig_path.empty()) rig_path = LISFM_DEFAULT_RIG_PATH;
+  if (rig_path.empty()) {
+    rig_path = preset == "hilti2021" ? JoinPaths(LISFM_BAG_PRESET_DIR, "../hilti2021.yaml")
+                                     : std::string(LISFM_DEFAULT_RIG_PATH);
+  }
   // A rig YAML is copied verbatim unless its camera time shifts are applied to
   // the stamps; a calibration folder is converted once.
   const bool folder = DirExists(rig_path);

@@ -7,7 +7,8 @@
 // linear_acceleration m/s^2) -> imu0/data.csv; sensor_msgs/PointCloud2 ->
 // lidarK/data/<ns>.pcd in the LiDAR frame (importers/point_cloud2.h: any field
 // layout, both byte orders, the preset's per-point time field; non-finite points
-// dropped; stamp = first point) ; sensor_msgs/Image mono8 -> 8-bit grey PNG,
+// dropped; stamp = first point); livox_ros_driver/CustomMsg -> the same, decoded
+// from the message definition stored in the bag (importers/bag_message.h); sensor_msgs/Image mono8 -> 8-bit grey PNG,
 // bgr8 / rgb8 -> BGR PNG -> camK/data/<ns>.png. LiDAR k and camera k of the
 // preset are the rig's lidars[k] and cameras[k] (folder names from the rig).
 // Camera stamps are moved to the IMU clock once, here (DESIGN.md "Time"):
@@ -44,7 +45,11 @@ struct BagPreset {
   std::string name;
   std::string imu_topic;                   // required on import
   std::vector<std::string> lidar_topics;   // [k] -> rig lidar k; each required on import
-  PointCloud2Mapping lidar_fields;         // per-point time / intensity / ring fields
+  // [k]: message type of lidar_topics[k] written by the exporter:
+  // sensor_msgs/PointCloud2 (default) or livox_ros_driver/CustomMsg. The
+  // importer takes either, by the type the bag gives the topic.
+  std::vector<std::string> lidar_types;
+  PointCloud2Mapping lidar_fields;  // per-point time / intensity / ring fields of PointCloud2 topics
   std::vector<std::string> camera_topics;  // [k] -> rig camera k; absent topics are skipped
 };
 
@@ -54,6 +59,7 @@ struct BagPreset {
 //   lidar_fields: {time: timestamp, time_type: float64, time_unit: s,
 //                  time_reference: absolute, intensity: intensity, ring: ring}
 //   camera_topics: [/alphasense/cam0/image_raw, ...]
+//   lidar_types: [sensor_msgs/PointCloud2, livox_ros_driver/CustomMsg]  (optional)
 // time_type: float32|float64|uint32|int32; time_unit: s|ns; time_reference:
 // stamp (since header.stamp) | absolute. Throws InputError naming file and key.
 BagPreset ReadBagPreset(const std::string& path);
