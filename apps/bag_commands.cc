@@ -101,7 +101,10 @@ int RunBagImporter(int argc, char** argv) {
                         "a ROS1 bag (no ROS installation needed) -> a sequence folder that "
                         "`lisfm lio` reads: imu0/, lidarK/ (PCD, per-point t since the scan's "
                         "first point), camK/ (PNG), rig.yaml; prints a per-topic summary");
-  options.AddRequiredString("input_path", &input_path, "ROS1 bag (.bag)");
+  options.AddRequiredString("input_path",
+                            &input_path,
+                            "ROS1 bag (.bag); a bag split in several files: a comma list "
+                            "a.bag,b.bag, a folder (all its *.bag) or a quoted glob 'rec_*.bag'");
   options.AddRequiredString("output_path", &output_path, "sequence folder to write");
   options.AddString("rig_path",
                     &rig_path,
@@ -130,7 +133,7 @@ int RunBagImporter(int argc, char** argv) {
   const bool folder = DirExists(rig_path);
   const Rig rig = folder ? LoadHiltiCalibration(rig_path) : ReadRigYaml(rig_path);
   const std::string rig_yaml = FolderRigYaml(rig, folder ? RigToYaml(rig) : ReadFile(rig_path));
-  CheckFileExists(input_path, "bag");
+  ExpandBagPaths(input_path);  // every file exists, before the output folder is made
   OutputFolder output(output_path, overwrite);
 
   LogStage("bag_importer: " + input_path);

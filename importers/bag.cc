@@ -1,6 +1,7 @@
 #include "importers/bag.h"
 
 #include <fmt/format.h>
+#include <glob.h>
 #include <rosbag/bag.h>
 #include <rosbag/view.h>
 #include <sensor_msgs/Image.h>
@@ -236,6 +237,42 @@ BagPreset ReadBagPreset(const std::string& path) {
   return p;
 }
 
+std::vector<std::string> ExpandBagPaths(const std::string& input) {
+  std::vector<std::string> out;
+  std::stringstream list(input);
+  std::string item;
+  while (std::getline(list, item, ',')) {
+    if (item.empty()) continue;
+    std::vector<std::string> found;
+    if (DirExists(item)) {
+      for (const auto& e : std::filesystem::directory_iterator(item)) {
+        if (e.is_regular_file() && e.path().extension() == ".bag")
+          found.push_back(e.path().string());
+      }
+      if (found.empty()) throw InputError(fmt::format("{}: folder holds no .bag file", item));
+    } else if (item.find_first_of("*?[") != std::string::npos) {
+      glob_t g;
+      if (glob(item.c_str(), 0, nullptr, &g) == 0) {
+        for (size_t i = 0; i < g.gl_pathc; ++i) found.push_back(g.gl_pathv[i]);
+      }
+      globfree(&g);
+      if (found.empty()) throw InputError(fmt::format("{}: no file matches the pattern", item));
+    } else {
+      CheckFileExists(item, "bag");
+      found.push_back(item);
+    }
+    std::sort(found.begin(), found.end());
+    out.insert(out.end(), found.begin(), found.end());
+  }
+  if (out.empty()) throw InputError(fmt::format("'{}': no bag given", input));
+  for (size_t i = 1; i < out.size(); ++i) {
+    if (std::find(out.begin(), out.begin() + i, out[i]) != out.begin() + i) {
+      throw InputError(fmt::format("{}: given twice in '{}'", out[i], input));
+    }
+  }
+  return out;
+}
+
 BagImportSummary ImportBag(const std::string& bag_path,
                            const Rig& rig,
                            const std::string& rig_yaml,
@@ -243,31 +280,34 @@ BagImportSummary ImportBag(const std::string& bag_path,
                            const BagImportOptions& options,
                            const std::string& output_dir) {
   const auto t0 = std::chrono::steady_clock::now();
-  CheckFileExists(bag_path, "bag");
+  const std::vector<std::string> paths = ExpandBagPaths(bag_path);
   if (preset.lidar_topics.size() > rig.lidars.size()) {
     throw InputError(fmt::format("{} lists {} LiDAR topics but the rig has {} LiDARs",
                                  preset.name,
                                  preset.lidar_topics.size(),
                                  rig.lidars.size()));
   }
-  rosbag::Bag bag;
-  try {
-    bag.open(bag_path, rosbag::bagmode::Read);
-  } catch (const std::exception& e) {
-    // A bag starts with "#ROSBAG V2.0\n"; one that does but fails to open has
-    // lost its index (an interrupted recording) or is damaged.
-    const std::string head = ReadFilePrefix(bag_path, 13);
-    if (head == "#ROSBAG V2.0\n") {
-      throw InputError(fmt::format(
-          "{}: ROS1 bag cannot be opened (truncated, unindexed or corrupted; `rosbag reindex` "
-          "repairs an unindexed bag): {}",
-          bag_path,
-          e.what()));
-    }
-    throw InputError(fmt::format("{}: not a readable ROS1 bag: {}", bag_path, e.what()));
-  }
   BagImportSummary summary;
-  summary.bag_bytes = bag.getSize();
+  std::vector<std::unique_ptr<rosbag::Bag>> bags;
+  for (const std::string& path : paths) {
+    bags.push_back(std::make_unique<rosbag::Bag>());
+    try {
+      bags.back()->open(path, rosbag::bagmode::Read);
+    } catch (const std::exception& e) {
+      // A bag starts with "#ROSBAG V2.0\n"; one that does but fails to open has
+      // lost its index (an interrupted recording) or is damaged.
+      const std::string head = ReadFilePrefix(path, 13);
+      if (head == "#ROSBAG V2.0\n") {
+        throw InputError(fmt::format(
+            "{}: ROS1 bag cannot be opened (truncated, unindexed or corrupted; `rosbag reindex` "
+            "repairs an unindexed bag): {}",
+            path,
+            e.what()));
+      }
+      throw InputError(fmt::format("{}: not a readable ROS1 bag: {}", path, e.what()));
+    }
+    summary.bag_bytes += bags.back()->getSize();
+  }
 
   // Topics of the preset and their types in the bag.
   std::map<std::string, TopicState> topics;
@@ -292,7 +332,8 @@ BagImportSummary ImportBag(const std::string& bag_path,
   }
   std::vector<std::string> query_topics;
   try {
-    rosbag::View all(bag);
+    rosbag::View all;
+    for (const auto& b : bags) all.addQuery(*b);
     for (const rosbag::ConnectionInfo* c : all.getConnections()) {
       auto it = topics.find(c->topic);
       if (it != topics.end() && it->second.type.empty()) {
@@ -348,7 +389,9 @@ BagImportSummary ImportBag(const std::string& bag_path,
   std::vector<uint8_t> raw_bytes;                      // serialized CustomMsg being decoded
   std::string last_read = "before the first message";  // for errors of the chunk reader
   try {
-    rosbag::View view(bag, rosbag::TopicQuery(query_topics));
+    // Split bags: one view over all files, in receive-time order.
+    rosbag::View view;
+    for (const auto& b : bags) view.addQuery(*b, rosbag::TopicQuery(query_topics));
     // Progress over the bag's bytes (kB): the message bytes read so far; the
     // record headers and the index make up the rest at the end.
     const int64_t total_kb = static_cast<int64_t>(summary.bag_bytes / 1024);
@@ -496,7 +539,7 @@ BagImportSummary ImportBag(const std::string& bag_path,
                                  last_read,
                                  e.what()));
   }
-  bag.close();
+  for (const auto& b : bags) b->close();
 
   for (const std::string& topic : order) {
     const TopicState& s = topics.at(topic);

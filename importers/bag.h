@@ -8,8 +8,8 @@
 // lidarK/data/<ns>.pcd in the LiDAR frame (importers/point_cloud2.h: any field
 // layout, both byte orders, the preset's per-point time field; non-finite points
 // dropped; stamp = first point); livox_ros_driver/CustomMsg -> the same, decoded
-// from the message definition stored in the bag (importers/bag_message.h); sensor_msgs/Image mono8 -> 8-bit grey PNG,
-// bgr8 / rgb8 -> BGR PNG -> camK/data/<ns>.png. LiDAR k and camera k of the
+// from the message definition stored in the bag (importers/bag_message.h); sensor_msgs/Image mono8
+// -> 8-bit grey PNG, bgr8 / rgb8 -> BGR PNG -> camK/data/<ns>.png. LiDAR k and camera k of the
 // preset are the rig's lidars[k] and cameras[k] (folder names from the rig).
 // Camera stamps are moved to the IMU clock once, here (DESIGN.md "Time"):
 // t_ns = header.stamp + rig.cameras[k].timeshift_cam_imu, so the rig.yaml
@@ -43,13 +43,14 @@ namespace lisfm {
 // The topics and point layout of one recording setup (configs/bags/*.yaml).
 struct BagPreset {
   std::string name;
-  std::string imu_topic;                   // required on import
-  std::vector<std::string> lidar_topics;   // [k] -> rig lidar k; each required on import
+  std::string imu_topic;                  // required on import
+  std::vector<std::string> lidar_topics;  // [k] -> rig lidar k; each required on import
   // [k]: message type of lidar_topics[k] written by the exporter:
   // sensor_msgs/PointCloud2 (default) or livox_ros_driver/CustomMsg. The
   // importer takes either, by the type the bag gives the topic.
   std::vector<std::string> lidar_types;
-  PointCloud2Mapping lidar_fields;  // per-point time / intensity / ring fields of PointCloud2 topics
+  PointCloud2Mapping
+      lidar_fields;  // per-point time / intensity / ring fields of PointCloud2 topics
   std::vector<std::string> camera_topics;  // [k] -> rig camera k; absent topics are skipped
 };
 
@@ -86,7 +87,16 @@ struct BagImportSummary {
   double seconds = 0;
 };
 
-// Reads `bag_path` into the sequence folder `output_dir` (existing, empty).
+// The bag files of `input`: a comma list whose items are a bag file, a folder
+// (every *.bag in it) or a glob pattern (`rec_*.bag`); each item's files in
+// name order, items in the given order. Throws InputError for an item that
+// matches nothing, a missing file or a file given twice.
+std::vector<std::string> ExpandBagPaths(const std::string& input);
+
+// Reads `bag_path` (one bag, or a bag split in several files: ExpandBagPaths;
+// the files are read as one, messages in receive-time order) into the sequence
+// folder `output_dir` (existing, empty). Errors name `bag_path` as given, or the
+// file that cannot be opened.
 // `rig` names the LiDAR and camera folders and gives the camera time shifts;
 // `rig_yaml` is written as rig.yaml verbatim (the calibration file as given when
 // its camera time shifts are 0, so that it is read exactly as before;

@@ -16,6 +16,7 @@
 #include <fstream>
 #include <functional>
 #include <map>
+#include <memory>
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <string>
@@ -187,6 +188,40 @@ TEST_F(BagTest, Hilti2022LayoutRoundTripKeepsEverythingButSubMicrosecondTimes) {
   const std::string bag2 = dir_->File("hilti2.bag");
   ExportBag(seq1, preset, bag2);
   ExpectSameFolder(seq1, Import(bag2, preset, "hilti_seq2"), true);
+}
+
+TEST_F(BagTest, ASplitBagReadsAsOne) {
+  const BagPreset preset = ReadBagPreset(PresetPath("velodyne"));
+  const std::string whole = dir_->File("whole.bag");
+  ExportBag(dir_->File("seq"), preset, whole);
+  // Split by receive time into three files, as `rosbag record --split` does.
+  const std::string parts = dir_->File("parts");
+  fs::create_directories(parts);
+  {
+    rosbag::Bag in(whole, rosbag::bagmode::Read);
+    rosbag::View view(in);
+    const double t0 = view.getBeginTime().toSec(), t1 = view.getEndTime().toSec();
+    std::vector<std::unique_ptr<rosbag::Bag>> out;
+    for (int i = 0; i < 3; ++i) {
+      out.push_back(std::make_unique<rosbag::Bag>(parts + "/rec_" + std::to_string(i) + ".bag",
+                                                  rosbag::bagmode::Write));
+    }
+    for (const rosbag::MessageInstance& m : view) {
+      const int i = std::min(2, static_cast<int>(3 * (m.getTime().toSec() - t0) / (t1 - t0)));
+      out[i]->write(m.getTopic(), m.getTime(), m);
+    }
+    for (auto& b : out) b->close();
+  }
+  const std::string direct = Import(whole, preset, "whole_seq");
+  const std::string list = parts + "/rec_2.bag," + parts + "/rec_0.bag," + parts + "/rec_1.bag";
+  EXPECT_EQ(ExpandBagPaths(parts).size(), 3u);
+  EXPECT_EQ(ExpandBagPaths(parts + "/rec_*.bag"), ExpandBagPaths(parts));
+  ExpectSameFolder(direct, Import(list, preset, "split_list_seq"), true);
+  ExpectSameFolder(direct, Import(parts, preset, "split_folder_seq"), true);
+  ExpectSameFolder(direct, Import(parts + "/rec_[0-2].bag", preset, "split_glob_seq"), true);
+  EXPECT_THROW(ExpandBagPaths(parts + "/none_*.bag"), InputError);
+  EXPECT_THROW(ExpandBagPaths(parts + "/rec_0.bag," + parts + "/rec_0.bag"), InputError);
+  EXPECT_THROW(ExpandBagPaths(parts + "/rec_9.bag"), InputError);
 }
 
 TEST_F(BagTest, CameraRateKeepsFramesAtMostThatOften) {
