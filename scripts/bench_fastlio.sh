@@ -21,6 +21,9 @@
 #    down-sampling). Both trajectories (IMU poses) are scored with `lisfm evaluate` (SE(3)).
 #    "same as folder" says whether lio on the imported folder wrote a trajectory.txt byte-identical
 #    to lio on the simulated folder itself.
+# LISFM_BENCH_CPU=N pins FAST-LIO2 (roscore, node, feeder) and `lisfm lio` to CPU N (taskset):
+# both then run on one core (lio's TBB sees one CPU; FAST-LIO2 is single-threaded on <= 3 cores
+# anyway), which keeps the comparison fair on a machine loaded by other work.
 # Prints one markdown table. A benchmark, not a test: run it once; it takes ~10 min on 2 cores.
 # Disk: per 120 s sequence the simulated folder (1.6 GB, kept: a re-run skips the simulation) and,
 # while it runs, the bag and the imported folder (1.8 + 1.6 GB, removed after the sequence unless
@@ -32,6 +35,8 @@ DURATION="${2:-120}"
 PEERS_SRC="${LISFM_PEERS_SRC:-$(cd "$LISFM_ROOT/.." && pwd)/shared/peers}"
 PEERS="${PEERS:-$LISFM_BUILD_DIR/peers}"
 BLIND="${FASTLIO_BLIND:-0.5}"
+PIN=()
+[ -n "${LISFM_BENCH_CPU:-}" ] && PIN=(taskset -c "$LISFM_BENCH_CPU")
 EXP04="$LISFM_SHARED_DATA/hilti2022_groundtruth/exp_04_construction_upper_level_easy_2_2022-03-03-11-48-59_imu.txt"
 [ -x "$LISFM" ] || { echo "bench_fastlio: build first ($LISFM missing)" >&2; exit 1; }
 [ -f "$EXP04" ] || { echo "bench_fastlio: missing $EXP04 (LISFM_SHARED_DATA)" >&2; exit 1; }
@@ -129,7 +134,7 @@ for seq in office_exp04 staircase; do
   fl="$WORK/out_${seq}_fastlio"
   rm -rf "$fl"
   start=$(date +%s%N)
-  "$RUN_FASTLIO" "$bag" "$fl" "$WORK/${seq}_fastlio.yaml" > "$WORK/${seq}_fastlio_run.log" 2>&1 \
+  ${PIN[@]+"${PIN[@]}"} "$RUN_FASTLIO" "$bag" "$fl" "$WORK/${seq}_fastlio.yaml" > "$WORK/${seq}_fastlio_run.log" 2>&1 \
     || { cat "$WORK/${seq}_fastlio_run.log" >&2; echo "bench_fastlio: FAST-LIO2 failed on $bag" >&2; exit 4; }
   fl_wall=$(( $(date +%s%N) - start ))
   evaluate "$S/groundtruth.txt" "$fl/fastlio_odom.tum" "$fl/eval"
@@ -143,7 +148,8 @@ for seq in office_exp04 staircase; do
     --rig_path "$S/rig.yaml" --quiet 2> "$WORK/${seq}_import.log"
   import_wall=$(( $(date +%s%N) - start ))
   start=$(date +%s%N)
-  "$LISFM" lio --input_path "$imp" --output_path "$ours" --write_keyframes 0 --quiet \
+  ${PIN[@]+"${PIN[@]}"} "$LISFM" lio --input_path "$imp" --output_path "$ours" \
+    --write_keyframes 0 --quiet \
     2> "$WORK/${seq}_lio.log"
   lio_wall=$(( $(date +%s%N) - start ))
   evaluate "$S/groundtruth.txt" "$ours/trajectory.txt" "$ours/eval"
@@ -204,7 +210,7 @@ done
 
 echo
 echo "FAST-LIO2 (7cc4175, $(grep -o 'CXX_FLAGS: .*' "$PEERS/fastlio/BUILD_INFO" | head -1)) vs lisfm lio on the same bag"
-echo "($(nproc) cores, $(lscpu | sed -n 's/Model name: *//p' | head -1), load $(cut -d' ' -f1-3 /proc/loadavg), $(date -u +%FT%TZ)); sequences ${DURATION} s; FAST-LIO2 blind ${BLIND} m"
+echo "($(nproc) cores, $(lscpu | sed -n 's/Model name: *//p' | head -1), load $(cut -d' ' -f1-3 /proc/loadavg), $(date -u +%FT%TZ)); sequences ${DURATION} s; FAST-LIO2 blind ${BLIND} m${LISFM_BENCH_CPU:+; both pinned to CPU $LISFM_BENCH_CPU}"
 echo
 echo "| sequence | system | poses / scans | median ms/scan | p95 ms | RTF (per-scan time) | wall s (whole run) | ATE rmse cm | ATE max cm | RPE 1 m cm | same as folder |"
 echo "|---|---|---|---|---|---|---|---|---|---|---|"
