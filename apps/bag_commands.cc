@@ -25,7 +25,7 @@ namespace lisfm {
 namespace {
 
 constexpr char kPresetHelp[] =
-    "topic preset: a name in configs/bags/ (hilti2022, velodyne) or a preset YAML path";
+    "topic preset: a name in configs/bags/ (hilti2022, hilti2021, velodyne) or a preset YAML path";
 
 // A preset name (configs/bags/<name>.yaml) or a path to a preset YAML.
 BagPreset LoadPreset(const std::string& preset) {
@@ -101,12 +101,15 @@ int RunBagImporter(int argc, char** argv) {
                         "a ROS1 bag (no ROS installation needed) -> a sequence folder that "
                         "`lisfm lio` reads: imu0/, lidarK/ (PCD, per-point t since the scan's "
                         "first point), camK/ (PNG), rig.yaml; prints a per-topic summary");
-  options.AddRequiredString("input_path", &input_path, "ROS1 bag (.bag)");
+  options.AddRequiredString("input_path",
+                            &input_path,
+                            "ROS1 bag (.bag); a bag split in several files: a comma list "
+                            "a.bag,b.bag, a folder (all its *.bag) or a quoted glob 'rec_*.bag'");
   options.AddRequiredString("output_path", &output_path, "sequence folder to write");
   options.AddString("rig_path",
                     &rig_path,
                     "rig YAML or HILTI/Kalibr calibration folder written as rig.yaml (default: "
-                    "configs/hilti2022.yaml)");
+                    "configs/hilti2021.yaml with --preset hilti2021, else configs/hilti2022.yaml)");
   options.AddString("preset", &preset, kPresetHelp);
   options.AddString("topics",
                     &topics,
@@ -121,13 +124,16 @@ int RunBagImporter(int argc, char** argv) {
   if (!options.Parse(argc, argv)) return 0;
   BagPreset bag_preset = LoadPreset(preset);
   ApplyTopicOverrides(topics, &bag_preset);
-  if (rig_path.empty()) rig_path = LISFM_DEFAULT_RIG_PATH;
+  if (rig_path.empty()) {
+    rig_path = preset == "hilti2021" ? JoinPaths(LISFM_BAG_PRESET_DIR, "../hilti2021.yaml")
+                                     : std::string(LISFM_DEFAULT_RIG_PATH);
+  }
   // A rig YAML is copied verbatim unless its camera time shifts are applied to
   // the stamps; a calibration folder is converted once.
   const bool folder = DirExists(rig_path);
   const Rig rig = folder ? LoadHiltiCalibration(rig_path) : ReadRigYaml(rig_path);
   const std::string rig_yaml = FolderRigYaml(rig, folder ? RigToYaml(rig) : ReadFile(rig_path));
-  CheckFileExists(input_path, "bag");
+  ExpandBagPaths(input_path);  // every file exists, before the output folder is made
   OutputFolder output(output_path, overwrite);
 
   LogStage("bag_importer: " + input_path);

@@ -32,6 +32,7 @@ int RunDatabaseImporter(int argc, char** argv);  // database_importer_command.cc
 int RunPoseSlam(int argc, char** argv);        // pose_slam_command.cc
 int RunBagImporter(int argc, char** argv);       // bag_commands.cc
 int RunBagExporter(int argc, char** argv);       // bag_commands.cc
+int RunKittiImporter(int argc, char** argv);     // kitti_command.cc
 int RunPipeline(int argc, char** argv);          // pipeline_command.cc
 
 }  // namespace lisfm

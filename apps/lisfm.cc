@@ -42,6 +42,8 @@ const std::vector<Command>& Commands() {
        &RunBagImporter},
       {"bag_exporter", "a sequence folder -> a ROS1 bag in a preset's message layouts",
        &RunBagExporter},
+      {"kitti_importer", "a KITTI odometry sequence (.bin scans, times, poses) -> a sequence folder",
+       &RunKittiImporter},
       {"database_importer",
        "COLMAP database with pose priors, rig and a LiDAR-proxy co-visibility pair list from a "
        "sequence + pose_slam output",

@@ -1,6 +1,7 @@
 #include "importers/bag.h"
 
 #include <fmt/format.h>
+#include <glob.h>
 #include <rosbag/bag.h>
 #include <rosbag/view.h>
 #include <sensor_msgs/Image.h>
@@ -13,10 +14,12 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <iomanip>
 #include <map>
+#include <memory>
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
@@ -28,9 +31,57 @@
 #include "core/io/rig_io.h"
 #include "core/logging.h"
 #include "core/progress.h"
+#include "importers/bag_message.h"
+
+namespace lisfm {
+
+// A message given as its serialized bytes with its type, md5 and definition
+// (for types without generated C++ headers, e.g. livox_ros_driver/CustomMsg).
+struct RawRosMessage {
+  const char* datatype = "";
+  const char* md5sum = "";
+  const char* definition = "";
+  std::vector<uint8_t> bytes;
+};
+
+}  // namespace lisfm
+
+namespace ros {
+namespace message_traits {
+template <>
+struct IsMessage<lisfm::RawRosMessage> : TrueType {};
+template <>
+struct MD5Sum<lisfm::RawRosMessage> {
+  static const char* value(const lisfm::RawRosMessage& m) { return m.md5sum; }
+};
+template <>
+struct DataType<lisfm::RawRosMessage> {
+  static const char* value(const lisfm::RawRosMessage& m) { return m.datatype; }
+};
+template <>
+struct Definition<lisfm::RawRosMessage> {
+  static const char* value(const lisfm::RawRosMessage& m) { return m.definition; }
+};
+}  // namespace message_traits
+namespace serialization {
+template <>
+struct Serializer<lisfm::RawRosMessage> {
+  template <typename Stream>
+  static void write(Stream& stream, const lisfm::RawRosMessage& m) {
+    if (!m.bytes.empty())
+      std::memcpy(stream.advance(m.bytes.size()), m.bytes.data(), m.bytes.size());
+  }
+  static uint32_t serializedLength(const lisfm::RawRosMessage& m) {
+    return static_cast<uint32_t>(m.bytes.size());
+  }
+};
+}  // namespace serialization
+}  // namespace ros
 
 namespace lisfm {
 namespace {
+
+constexpr char kPointCloud2Type[] = "sensor_msgs/PointCloud2";
 
 ros::Time ToRosTime(TimestampNs t_ns, const std::string& what) {
   if (t_ns <= 0)
@@ -79,6 +130,8 @@ struct TopicState {
   std::vector<TimestampNs> kept;    // stamps written to the folder
   TimestampNs last_kept = 0;
   std::string type;
+  std::string msg_def;                        // the connection's message definition
+  std::unique_ptr<RosMessageDefinition> def;  // CustomMsg topics
 };
 
 std::string Where(const std::string& bag, const std::string& topic, size_t index) {
@@ -136,6 +189,22 @@ BagPreset ReadBagPreset(const std::string& path) {
     p.imu_topic = doc["imu_topic"].as<std::string>();
     p.lidar_topics = StringList(doc["lidar_topics"], path, "lidar_topics");
     p.camera_topics = StringList(doc["camera_topics"], path, "camera_topics");
+    p.lidar_types = StringList(doc["lidar_types"], path, "lidar_types");
+    if (!doc["lidar_types"]) p.lidar_types.assign(p.lidar_topics.size(), kPointCloud2Type);
+    if (p.lidar_types.size() != p.lidar_topics.size()) {
+      throw InputError(
+          path,
+          "lidar_types",
+          fmt::format("{} types for {} lidar_topics", p.lidar_types.size(), p.lidar_topics.size()));
+    }
+    for (const std::string& t : p.lidar_types) {
+      if (t != kPointCloud2Type && t != kLivoxCustomMsgType) {
+        throw InputError(
+            path,
+            "lidar_types",
+            fmt::format("'{}' is not {} or {}", t, kPointCloud2Type, kLivoxCustomMsgType));
+      }
+    }
     const YAML::Node f = doc["lidar_fields"];
     if (f) {
       if (f["time"]) p.lidar_fields.time.name = f["time"].as<std::string>();
@@ -168,6 +237,42 @@ BagPreset ReadBagPreset(const std::string& path) {
   return p;
 }
 
+std::vector<std::string> ExpandBagPaths(const std::string& input) {
+  std::vector<std::string> out;
+  std::stringstream list(input);
+  std::string item;
+  while (std::getline(list, item, ',')) {
+    if (item.empty()) continue;
+    std::vector<std::string> found;
+    if (DirExists(item)) {
+      for (const auto& e : std::filesystem::directory_iterator(item)) {
+        if (e.is_regular_file() && e.path().extension() == ".bag")
+          found.push_back(e.path().string());
+      }
+      if (found.empty()) throw InputError(fmt::format("{}: folder holds no .bag file", item));
+    } else if (item.find_first_of("*?[") != std::string::npos) {
+      glob_t g;
+      if (glob(item.c_str(), 0, nullptr, &g) == 0) {
+        for (size_t i = 0; i < g.gl_pathc; ++i) found.push_back(g.gl_pathv[i]);
+      }
+      globfree(&g);
+      if (found.empty()) throw InputError(fmt::format("{}: no file matches the pattern", item));
+    } else {
+      CheckFileExists(item, "bag");
+      found.push_back(item);
+    }
+    std::sort(found.begin(), found.end());
+    out.insert(out.end(), found.begin(), found.end());
+  }
+  if (out.empty()) throw InputError(fmt::format("'{}': no bag given", input));
+  for (size_t i = 1; i < out.size(); ++i) {
+    if (std::find(out.begin(), out.begin() + i, out[i]) != out.begin() + i) {
+      throw InputError(fmt::format("{}: given twice in '{}'", out[i], input));
+    }
+  }
+  return out;
+}
+
 BagImportSummary ImportBag(const std::string& bag_path,
                            const Rig& rig,
                            const std::string& rig_yaml,
@@ -175,31 +280,34 @@ BagImportSummary ImportBag(const std::string& bag_path,
                            const BagImportOptions& options,
                            const std::string& output_dir) {
   const auto t0 = std::chrono::steady_clock::now();
-  CheckFileExists(bag_path, "bag");
+  const std::vector<std::string> paths = ExpandBagPaths(bag_path);
   if (preset.lidar_topics.size() > rig.lidars.size()) {
     throw InputError(fmt::format("{} lists {} LiDAR topics but the rig has {} LiDARs",
                                  preset.name,
                                  preset.lidar_topics.size(),
                                  rig.lidars.size()));
   }
-  rosbag::Bag bag;
-  try {
-    bag.open(bag_path, rosbag::bagmode::Read);
-  } catch (const std::exception& e) {
-    // A bag starts with "#ROSBAG V2.0\n"; one that does but fails to open has
-    // lost its index (an interrupted recording) or is damaged.
-    const std::string head = ReadFilePrefix(bag_path, 13);
-    if (head == "#ROSBAG V2.0\n") {
-      throw InputError(fmt::format(
-          "{}: ROS1 bag cannot be opened (truncated, unindexed or corrupted; `rosbag reindex` "
-          "repairs an unindexed bag): {}",
-          bag_path,
-          e.what()));
-    }
-    throw InputError(fmt::format("{}: not a readable ROS1 bag: {}", bag_path, e.what()));
-  }
   BagImportSummary summary;
-  summary.bag_bytes = bag.getSize();
+  std::vector<std::unique_ptr<rosbag::Bag>> bags;
+  for (const std::string& path : paths) {
+    bags.push_back(std::make_unique<rosbag::Bag>());
+    try {
+      bags.back()->open(path, rosbag::bagmode::Read);
+    } catch (const std::exception& e) {
+      // A bag starts with "#ROSBAG V2.0\n"; one that does but fails to open has
+      // lost its index (an interrupted recording) or is damaged.
+      const std::string head = ReadFilePrefix(path, 13);
+      if (head == "#ROSBAG V2.0\n") {
+        throw InputError(fmt::format(
+            "{}: ROS1 bag cannot be opened (truncated, unindexed or corrupted; `rosbag reindex` "
+            "repairs an unindexed bag): {}",
+            path,
+            e.what()));
+      }
+      throw InputError(fmt::format("{}: not a readable ROS1 bag: {}", path, e.what()));
+    }
+    summary.bag_bytes += bags.back()->getSize();
+  }
 
   // Topics of the preset and their types in the bag.
   std::map<std::string, TopicState> topics;
@@ -224,10 +332,14 @@ BagImportSummary ImportBag(const std::string& bag_path,
   }
   std::vector<std::string> query_topics;
   try {
-    rosbag::View all(bag);
+    rosbag::View all;
+    for (const auto& b : bags) all.addQuery(*b);
     for (const rosbag::ConnectionInfo* c : all.getConnections()) {
       auto it = topics.find(c->topic);
-      if (it != topics.end()) it->second.type = c->datatype;
+      if (it != topics.end() && it->second.type.empty()) {
+        it->second.type = c->datatype;
+        it->second.msg_def = c->msg_def;
+      }
     }
   } catch (const std::exception& e) {
     throw InputError(fmt::format("{}: cannot read the bag index: {}", bag_path, e.what()));
@@ -252,9 +364,18 @@ BagImportSummary ImportBag(const std::string& bag_path,
                                    expected,
                                    preset.name));
     }
-    if (s.type != expected) {
-      throw InputError(
-          fmt::format("{}: topic {} has type {}, expected {}", bag_path, topic, s.type, expected));
+    if (s.kind == TopicState::Kind::kLidar && s.type == kLivoxCustomMsgType) {
+      s.def = std::make_unique<RosMessageDefinition>(
+          s.type, s.msg_def, fmt::format("{}: topic {}", bag_path, topic));
+    } else if (s.type != expected) {
+      throw InputError(fmt::format("{}: topic {} has type {}, expected {}{}",
+                                   bag_path,
+                                   topic,
+                                   s.type,
+                                   expected,
+                                   s.kind == TopicState::Kind::kLidar
+                                       ? std::string(" or ") + kLivoxCustomMsgType
+                                       : std::string()));
     }
     query_topics.push_back(topic);
     if (s.kind != TopicState::Kind::kImu) CreateDirs(JoinPaths(output_dir, s.folder + "/data"));
@@ -265,9 +386,12 @@ BagImportSummary ImportBag(const std::string& bag_path,
   const TimestampNs camera_min_dt_ns =
       options.camera_rate_hz > 0 ? static_cast<TimestampNs>(0.9e9 / options.camera_rate_hz) : 0;
   std::map<std::string, size_t> counters;
+  std::vector<uint8_t> raw_bytes;                      // serialized CustomMsg being decoded
   std::string last_read = "before the first message";  // for errors of the chunk reader
   try {
-    rosbag::View view(bag, rosbag::TopicQuery(query_topics));
+    // Split bags: one view over all files, in receive-time order.
+    rosbag::View view;
+    for (const auto& b : bags) view.addQuery(*b, rosbag::TopicQuery(query_topics));
     // Progress over the bag's bytes (kB): the message bytes read so far; the
     // record headers and the index make up the rest at the end.
     const int64_t total_kb = static_cast<int64_t>(summary.bag_bytes / 1024);
@@ -315,6 +439,21 @@ BagImportSummary ImportBag(const std::string& bag_path,
         }
         imu.push_back(sample);
         s.kept.push_back(sample.t_ns);
+      } else if (s.kind == TopicState::Kind::kLidar && s.def) {
+        raw_bytes.resize(m.size());
+        ros::serialization::OStream stream(raw_bytes.data(),
+                                           static_cast<uint32_t>(raw_bytes.size()));
+        m.write(stream);
+        PointCloud cloud =
+            DecodeLivoxCustomMsg(*s.def, raw_bytes.data(), raw_bytes.size(), where());
+        RemoveNonFinite(&cloud);
+        if (cloud.points.empty()) throw InputError(fmt::format("{}: no finite point", where()));
+        check_stamp(cloud.stamp_ns);
+        WritePcd(
+            JoinPaths(output_dir, s.folder + "/data/" + std::to_string(cloud.stamp_ns) + ".pcd"),
+            cloud,
+            true);
+        s.kept.push_back(cloud.stamp_ns);
       } else if (s.kind == TopicState::Kind::kLidar) {
         sensor_msgs::PointCloud2::ConstPtr msg;
         try {
@@ -400,7 +539,7 @@ BagImportSummary ImportBag(const std::string& bag_path,
                                  last_read,
                                  e.what()));
   }
-  bag.close();
+  for (const auto& b : bags) b->close();
 
   for (const std::string& topic : order) {
     const TopicState& s = topics.at(topic);
@@ -487,6 +626,22 @@ BagExportSummary ExportBag(const std::string& seq_root,
         const SensorFile& f = seq.lidar_scans[k][i];
         PointCloud cloud = ReadPcd(f.path);
         cloud.stamp_ns = f.t_ns;
+        float t_max = 0;
+        for (const LidarPoint& p : cloud.points) t_max = std::max(t_max, p.t);
+        // Received at the last point, as a driver publishes it.
+        const ros::Time received = ToRosTime(f.t_ns + SecondsToNs(t_max), f.path);
+        if (k < preset.lidar_types.size() && preset.lidar_types[k] == kLivoxCustomMsgType) {
+          (void)ToRosTime(f.t_ns, f.path);  // header.stamp and timebase must be valid times
+          RawRosMessage raw;
+          raw.datatype = kLivoxCustomMsgType;
+          raw.md5sum = kLivoxCustomMsgMd5;
+          raw.definition = kLivoxCustomMsgDefinition;
+          raw.bytes = EncodeLivoxCustomMsg(
+              cloud, static_cast<uint32_t>(i), seq.rig.lidars[k].name, static_cast<uint8_t>(k));
+          bag.write(preset.lidar_topics[k], received, raw);
+          ++summary.num_scans;
+          continue;
+        }
         sensor_msgs::PointCloud2 m;
         m.header.seq = static_cast<uint32_t>(i);
         m.header.stamp = ToRosTime(f.t_ns, f.path);
@@ -511,10 +666,7 @@ BagExportSummary ExportBag(const std::string& seq_root,
           return IsFinite(p);
         });
         m.data = std::move(data);
-        float t_max = 0;
-        for (const LidarPoint& p : cloud.points) t_max = std::max(t_max, p.t);
-        // Received at the last point, as a driver publishes it.
-        bag.write(preset.lidar_topics[k], ToRosTime(f.t_ns + SecondsToNs(t_max), f.path), m);
+        bag.write(preset.lidar_topics[k], received, m);
         ++summary.num_scans;
       }
     }

@@ -7,8 +7,9 @@
 // linear_acceleration m/s^2) -> imu0/data.csv; sensor_msgs/PointCloud2 ->
 // lidarK/data/<ns>.pcd in the LiDAR frame (importers/point_cloud2.h: any field
 // layout, both byte orders, the preset's per-point time field; non-finite points
-// dropped; stamp = first point) ; sensor_msgs/Image mono8 -> 8-bit grey PNG,
-// bgr8 / rgb8 -> BGR PNG -> camK/data/<ns>.png. LiDAR k and camera k of the
+// dropped; stamp = first point); livox_ros_driver/CustomMsg -> the same, decoded
+// from the message definition stored in the bag (importers/bag_message.h); sensor_msgs/Image mono8
+// -> 8-bit grey PNG, bgr8 / rgb8 -> BGR PNG -> camK/data/<ns>.png. LiDAR k and camera k of the
 // preset are the rig's lidars[k] and cameras[k] (folder names from the rig).
 // Camera stamps are moved to the IMU clock once, here (DESIGN.md "Time"):
 // t_ns = header.stamp + rig.cameras[k].timeshift_cam_imu, so the rig.yaml
@@ -42,9 +43,14 @@ namespace lisfm {
 // The topics and point layout of one recording setup (configs/bags/*.yaml).
 struct BagPreset {
   std::string name;
-  std::string imu_topic;                   // required on import
-  std::vector<std::string> lidar_topics;   // [k] -> rig lidar k; each required on import
-  PointCloud2Mapping lidar_fields;         // per-point time / intensity / ring fields
+  std::string imu_topic;                  // required on import
+  std::vector<std::string> lidar_topics;  // [k] -> rig lidar k; each required on import
+  // [k]: message type of lidar_topics[k] written by the exporter:
+  // sensor_msgs/PointCloud2 (default) or livox_ros_driver/CustomMsg. The
+  // importer takes either, by the type the bag gives the topic.
+  std::vector<std::string> lidar_types;
+  PointCloud2Mapping
+      lidar_fields;  // per-point time / intensity / ring fields of PointCloud2 topics
   std::vector<std::string> camera_topics;  // [k] -> rig camera k; absent topics are skipped
 };
 
@@ -54,6 +60,7 @@ struct BagPreset {
 //   lidar_fields: {time: timestamp, time_type: float64, time_unit: s,
 //                  time_reference: absolute, intensity: intensity, ring: ring}
 //   camera_topics: [/alphasense/cam0/image_raw, ...]
+//   lidar_types: [sensor_msgs/PointCloud2, livox_ros_driver/CustomMsg]  (optional)
 // time_type: float32|float64|uint32|int32; time_unit: s|ns; time_reference:
 // stamp (since header.stamp) | absolute. Throws InputError naming file and key.
 BagPreset ReadBagPreset(const std::string& path);
@@ -80,7 +87,16 @@ struct BagImportSummary {
   double seconds = 0;
 };
 
-// Reads `bag_path` into the sequence folder `output_dir` (existing, empty).
+// The bag files of `input`: a comma list whose items are a bag file, a folder
+// (every *.bag in it) or a glob pattern (`rec_*.bag`); each item's files in
+// name order, items in the given order. Throws InputError for an item that
+// matches nothing, a missing file or a file given twice.
+std::vector<std::string> ExpandBagPaths(const std::string& input);
+
+// Reads `bag_path` (one bag, or a bag split in several files: ExpandBagPaths;
+// the files are read as one, messages in receive-time order) into the sequence
+// folder `output_dir` (existing, empty). Errors name `bag_path` as given, or the
+// file that cannot be opened.
 // `rig` names the LiDAR and camera folders and gives the camera time shifts;
 // `rig_yaml` is written as rig.yaml verbatim (the calibration file as given when
 // its camera time shifts are 0, so that it is read exactly as before;

@@ -5,14 +5,18 @@
 
 #include <gtest/gtest.h>
 #include <rosbag/bag.h>
+#include <rosbag/view.h>
 #include <sensor_msgs/Image.h>
 #include <sensor_msgs/Imu.h>
 #include <sensor_msgs/PointCloud2.h>
 
 #include <algorithm>
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <functional>
+#include <map>
+#include <memory>
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <string>
@@ -186,6 +190,40 @@ TEST_F(BagTest, Hilti2022LayoutRoundTripKeepsEverythingButSubMicrosecondTimes) {
   ExpectSameFolder(seq1, Import(bag2, preset, "hilti_seq2"), true);
 }
 
+TEST_F(BagTest, ASplitBagReadsAsOne) {
+  const BagPreset preset = ReadBagPreset(PresetPath("velodyne"));
+  const std::string whole = dir_->File("whole.bag");
+  ExportBag(dir_->File("seq"), preset, whole);
+  // Split by receive time into three files, as `rosbag record --split` does.
+  const std::string parts = dir_->File("parts");
+  fs::create_directories(parts);
+  {
+    rosbag::Bag in(whole, rosbag::bagmode::Read);
+    rosbag::View view(in);
+    const double t0 = view.getBeginTime().toSec(), t1 = view.getEndTime().toSec();
+    std::vector<std::unique_ptr<rosbag::Bag>> out;
+    for (int i = 0; i < 3; ++i) {
+      out.push_back(std::make_unique<rosbag::Bag>(parts + "/rec_" + std::to_string(i) + ".bag",
+                                                  rosbag::bagmode::Write));
+    }
+    for (const rosbag::MessageInstance& m : view) {
+      const int i = std::min(2, static_cast<int>(3 * (m.getTime().toSec() - t0) / (t1 - t0)));
+      out[i]->write(m.getTopic(), m.getTime(), m);
+    }
+    for (auto& b : out) b->close();
+  }
+  const std::string direct = Import(whole, preset, "whole_seq");
+  const std::string list = parts + "/rec_2.bag," + parts + "/rec_0.bag," + parts + "/rec_1.bag";
+  EXPECT_EQ(ExpandBagPaths(parts).size(), 3u);
+  EXPECT_EQ(ExpandBagPaths(parts + "/rec_*.bag"), ExpandBagPaths(parts));
+  ExpectSameFolder(direct, Import(list, preset, "split_list_seq"), true);
+  ExpectSameFolder(direct, Import(parts, preset, "split_folder_seq"), true);
+  ExpectSameFolder(direct, Import(parts + "/rec_[0-2].bag", preset, "split_glob_seq"), true);
+  EXPECT_THROW(ExpandBagPaths(parts + "/none_*.bag"), InputError);
+  EXPECT_THROW(ExpandBagPaths(parts + "/rec_0.bag," + parts + "/rec_0.bag"), InputError);
+  EXPECT_THROW(ExpandBagPaths(parts + "/rec_9.bag"), InputError);
+}
+
 TEST_F(BagTest, CameraRateKeepsFramesAtMostThatOften) {
   const std::string bag = dir_->File("rate.bag");
   const BagPreset preset = ReadBagPreset(PresetPath("velodyne"));
@@ -307,6 +345,88 @@ TEST_F(BagTest, BadBagsAreOneInputErrorNamingBagTopicAndMessage) {
   BagPreset wrong_type = imu_only;
   wrong_type.imu_topic = "/cam0/image_raw";
   ExpectImportError(hand, wrong_type, {hand, "/cam0/image_raw", "expected sensor_msgs/Imu"});
+}
+
+// HILTI 2021 rig, Ouster-like + Livox-like LiDARs: Ouster PointCloud2 (`t`
+// uint32 ns) -> lidar0, Livox CustomMsg (timebase + offset_time, reflectivity
+// uint8) -> lidar1.
+void ExpectSameHilti2021Folder(const std::string& a_root, const std::string& b_root) {
+  const Sequence a = ReadSequence(a_root);
+  const Sequence b = ReadSequence(b_root);
+  ASSERT_EQ(a.imu.size(), b.imu.size());
+  for (size_t i = 0; i < a.imu.size(); ++i) {
+    ASSERT_EQ(a.imu[i].t_ns, b.imu[i].t_ns) << i;
+    ASSERT_EQ(a.imu[i].gyro, b.imu[i].gyro) << i;
+  }
+  ASSERT_EQ(a.lidar_scans.size(), 2u);
+  ASSERT_EQ(b.lidar_scans.size(), 2u);
+  for (size_t k = 0; k < 2; ++k) {
+    ASSERT_EQ(a.lidar_scans[k].size(), b.lidar_scans[k].size()) << k;
+    ASSERT_GT(a.lidar_scans[k].size(), 5u) << k;
+    for (size_t i = 0; i < a.lidar_scans[k].size(); ++i) {
+      ASSERT_EQ(a.lidar_scans[k][i].t_ns, b.lidar_scans[k][i].t_ns) << k << " " << i;
+      const PointCloud ca = ReadPcd(a.lidar_scans[k][i].path);
+      const PointCloud cb = ReadPcd(b.lidar_scans[k][i].path);
+      ASSERT_EQ(ca.size(), cb.size());
+      for (size_t j = 0; j < ca.size(); ++j) {
+        ASSERT_EQ(ca.points[j].x, cb.points[j].x);
+        ASSERT_EQ(ca.points[j].y, cb.points[j].y);
+        ASSERT_EQ(ca.points[j].z, cb.points[j].z);
+        ASSERT_EQ(ca.points[j].ring, cb.points[j].ring);
+        // 1 ns integer times, then float32 seconds (half an ulp: 3.7 ns at 0.1 s)
+        ASSERT_NEAR(ca.points[j].t, cb.points[j].t, 5e-9) << k << " " << i << " " << j;
+        if (k == 0) {
+          ASSERT_EQ(ca.points[j].intensity, cb.points[j].intensity);
+        } else {  // Livox reflectivity is a uint8
+          ASSERT_NEAR(ca.points[j].intensity, cb.points[j].intensity, 0.5);
+          ASSERT_EQ(cb.points[j].intensity, std::round(cb.points[j].intensity));
+        }
+      }
+    }
+  }
+}
+
+TEST(BagHilti2021Test, OusterAndLivoxRoundTrip) {
+  test::TempDir dir;
+  sim::SimulatorOptions options;
+  options.duration = 1.0;
+  options.camera_rate = 0;
+  options.error_sources = "none";
+  options.output_path = dir.File("seq");
+  options.lidars = "spinning,livox";
+  sim::Simulate(options, ReadRigYaml(test::SourceDir() + "/configs/hilti2021.yaml"));
+  const BagPreset preset = ReadBagPreset(PresetPath("hilti2021"));
+  ASSERT_EQ(preset.lidar_types.size(), 2u);
+  EXPECT_EQ(preset.lidar_types[1], "livox_ros_driver/CustomMsg");
+  const std::string bag = dir.File("h21.bag");
+  const BagExportSummary e = ExportBag(dir.File("seq"), preset, bag, "lz4");
+  {
+    rosbag::Bag b(bag, rosbag::bagmode::Read);
+    rosbag::View view(b);
+    std::map<std::string, std::string> types;
+    for (const rosbag::ConnectionInfo* c : view.getConnections()) types[c->topic] = c->datatype;
+    EXPECT_EQ(types["/livox/lidar"], "livox_ros_driver/CustomMsg");
+    EXPECT_EQ(types["/os_cloud_node/points"], "sensor_msgs/PointCloud2");
+    EXPECT_EQ(types["/alphasense/imu"], "sensor_msgs/Imu");
+  }
+  const Sequence seq = ReadSequence(dir.File("seq"));
+  EXPECT_EQ(e.num_scans, seq.lidar_scans[0].size() + seq.lidar_scans[1].size());
+  auto import = [&](const std::string& from, const std::string& name) {
+    const std::string out = dir.File(name);
+    fs::create_directories(out);
+    ImportBag(from,
+              ReadRigYaml(dir.File("seq/rig.yaml")),
+              ReadFile(dir.File("seq/rig.yaml")),
+              preset,
+              BagImportOptions(),
+              out);
+    return out;
+  };
+  const std::string seq1 = import(bag, "seq1");
+  ExpectSameHilti2021Folder(dir.File("seq"), seq1);
+  const std::string bag2 = dir.File("h21b.bag");
+  ExportBag(seq1, preset, bag2);
+  ExpectSameHilti2021Folder(seq1, import(bag2, "seq2"));
 }
 
 TEST(BagPresetTest, BadPresetsNameFileAndKey) {
