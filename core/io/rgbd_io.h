@@ -14,8 +14,9 @@
 //      (greedy on |dt| with unique pairs, as the benchmark's associate.py); the frame time is
 //      the colour stamp. Depth scale 5000 units per metre (the TUM spec). TUM folders carry no
 //      intrinsics: RgbdReadOptions::intrinsics_path, else a camera.yaml in the folder (lisfm
-//      format above; T_cam_imu ignored), else the benchmark's ROS default for registered
-//      depth (fx = fy = 525, cx = 319.5, cy = 239.5, 640x480); intrinsics_source says which.
+//      format above; T_cam_imu ignored; its depth_scale, if any, replaces 5000), else the
+//      benchmark's ROS default for registered depth (fx = fy = 525, cx = 319.5, cy = 239.5,
+//      640x480); intrinsics_source says which.
 //  - kSevenScenes: Microsoft 7-Scenes: frame-XXXXXX.{color.png|color.jpg, depth.png,
 //      pose.txt} in the folder or its `frames/` subfolder, camera-intrinsics.txt (3x3 K) in
 //      the folder, beside the frames or in their parent; depth uint16 mm (0 and 65535 =
@@ -55,8 +56,8 @@ RgbdLayout ParseRgbdLayout(const std::string& name);
 
 // Pinhole intrinsics of the depth image (colour is registered to it, except 7-Scenes).
 struct RgbdIntrinsics {
-  double fx = 0, fy = 0;  // focal lengths, pixels
-  double cx = 0, cy = 0;  // principal point, pixels (centre of the top-left pixel = (0, 0))
+  double fx = 0, fy = 0;      // focal lengths, pixels
+  double cx = 0, cy = 0;      // principal point, pixels (centre of the top-left pixel = (0, 0))
   int width = 0, height = 0;  // pixels
 };
 
@@ -76,10 +77,10 @@ struct RgbdSequence {
   RgbdLayout layout = RgbdLayout::kAuto;  // the layout that was read (never kAuto)
   std::string path;                       // the folder given to ReadRgbdSequence
   RgbdIntrinsics intrinsics;
-  std::string intrinsics_source;     // file the intrinsics came from, or "TUM ROS default"
-  double depth_m_per_unit = 0;       // metres per depth-image unit (0.001 = mm), > 0
+  std::string intrinsics_source;      // file the intrinsics came from, or "TUM ROS default"
+  double depth_m_per_unit = 0;        // metres per depth-image unit (0.001 = mm), > 0
   std::vector<RgbdFrameInfo> frames;  // strictly increasing t_ns, at least one
-  std::string pose_source;           // file(s) the given poses came from; empty if none
+  std::string pose_source;            // file(s) the given poses came from; empty if none
 
   // Number of frames with a given pose.
   size_t NumGivenPoses() const;
@@ -95,8 +96,8 @@ struct RgbdReadOptions {
   std::string intrinsics_path;
   double depth_units_per_m = 0;        // overrides the layout's depth scale when > 0
   double association_max_dt_s = 0.02;  // TUM colour/depth pairing tolerance, s
-  double pose_max_gap_s = 0.1;  // TUM / lisfm groundtruth: longest gap bridged when
-                                // interpolating a pose, s; frames in a longer gap have none
+  double pose_max_gap_s = 0.1;         // TUM / lisfm groundtruth: longest gap bridged when
+                                       // interpolating a pose, s; frames in a longer gap have none
   bool Check() const;
 };
 
