@@ -94,8 +94,10 @@ void SurfelMap::RenderIndexMap(const SE3& world_from_camera,
           if (!(p.z() > 0)) continue;
           if ((R * s.normal).dot(p) > 0) continue;  // facing away from the camera
           const float inv_z = 1.f / p.z();
-          const int u = static_cast<int>(std::lround(fx * p.x() * inv_z + cx));
-          const int v = static_cast<int>(std::lround(fy * p.y() * inv_z + cy));
+          // Nearest pixel: floor(x + 0.5); far outside the image is skipped before the cast.
+          const float uf = fx * p.x() * inv_z + cx + 0.5f, vf = fy * p.y() * inv_z + cy + 0.5f;
+          if (!(uf >= -splat && vf >= -splat && uf < w + splat && vf < h + splat)) continue;
+          const int u = static_cast<int>(std::floor(uf)), v = static_cast<int>(std::floor(vf));
           const uint64_t key = Key(p.z(), static_cast<uint32_t>(i));
           if (splat == 0) {
             if (u < 0 || v < 0 || u >= w || v >= h) continue;
@@ -181,7 +183,22 @@ FuseStats SurfelMap::Fuse(const FusionFrame& frame, const SE3& world_from_camera
     const float cos_a = std::max(std::abs(map.normals[i].dot(q)) / q.norm(), 0.2f);
     return 0.70710678f * q.z() / (f * cos_a);
   };
-  // 2. Association (parallel over rows; each pixel reads the index map only).
+  // The rendered surfels in pixel order (one gather), so that the window search
+  // below reads neighbouring pixels instead of scattered surfels.
+  rendered_.resize(num_pixels);
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, num_pixels, 4096),
+                    [&](const tbb::blocked_range<size_t>& r) {
+                      for (size_t i = r.begin(); i != r.end(); ++i) {
+                        const uint32_t s = index_map_[i];
+                        RenderedSurfel& out = rendered_[i];
+                        out.index = s;
+                        if (s == kNoSurfel) continue;
+                        out.position = surfels_[s].position;
+                        out.normal = surfels_[s].normal;
+                        out.radius_m = surfels_[s].radius_m;
+                      }
+                    });
+  // 2. Association (parallel over rows; each pixel reads the rendered surfels only).
   tbb::parallel_for(0, h, [&](int v) {
     for (int u = 0; u < w; ++u) {
       const size_t i = static_cast<size_t>(v) * w + u;
@@ -190,9 +207,8 @@ FuseStats SurfelMap::Fuse(const FusionFrame& frame, const SE3& world_from_camera
       const Eigen::Vector3f q = R * map.vertices[i] + t;
       const Eigen::Vector3f n = R * map.normals[i];
       const float r_obs = observed_radius(i);
-      auto compatible = [&](uint32_t s, float* d2) {
-        if (s == kNoSurfel) return false;
-        const Surfel& surfel = surfels_[s];
+      auto compatible = [&](const RenderedSurfel& surfel, float* d2) {
+        if (surfel.index == kNoSurfel) return false;
         const Eigen::Vector3f d = surfel.position - q;
         const float along = surfel.normal.dot(d);
         *d2 = d.squaredNorm();
@@ -201,8 +217,8 @@ FuseStats SurfelMap::Fuse(const FusionFrame& frame, const SE3& world_from_camera
                surfel.normal.dot(n) >= min_cos;
       };
       float best_d2;
-      if (compatible(index_map_[i], &best_d2)) {
-        match_[i] = index_map_[i];
+      if (compatible(rendered_[i], &best_d2)) {
+        match_[i] = rendered_[i].index;
         continue;
       }
       best_d2 = std::numeric_limits<float>::infinity();
@@ -212,11 +228,11 @@ FuseStats SurfelMap::Fuse(const FusionFrame& frame, const SE3& world_from_camera
         for (int du = -radius; du <= radius; ++du) {
           const int uu = u + du;
           if (uu < 0 || uu >= w || (du == 0 && dv == 0)) continue;
-          const uint32_t s = index_map_[static_cast<size_t>(vv) * w + uu];
+          const RenderedSurfel& candidate = rendered_[static_cast<size_t>(vv) * w + uu];
           float d2;
-          if (compatible(s, &d2) && d2 < best_d2) {
+          if (compatible(candidate, &d2) && d2 < best_d2) {
             best_d2 = d2;
-            match_[i] = s;
+            match_[i] = candidate.index;
           }
         }
       }
