@@ -16,6 +16,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstring>
+#include <exception>
 #include <fstream>
 #include <optional>
 #include <string>
@@ -238,14 +239,21 @@ int RunFusion(int argc, char** argv) {
   const auto t_loop = std::chrono::steady_clock::now();
   for (size_t i = 0; i < num_frames; ++i) {
     // Load frame i + 1 while frame i is fused (image decoding is the slow part of I/O).
+    // A loading error is kept and rethrown after both tasks: thrown inside
+    // parallel_invoke it would cancel the fusion's parallel loops half-way.
     RgbdImage next;
     double next_load_ms = 0;
+    std::exception_ptr load_error;
     RgbdFrameResult r;
     tbb::parallel_invoke(
         [&] {
           if (i + 1 >= num_frames) return;
           const auto t0 = std::chrono::steady_clock::now();
-          next = LoadRgbdFrame(sequence, i + 1, factor);
+          try {
+            next = LoadRgbdFrame(sequence, i + 1, factor);
+          } catch (...) {
+            load_error = std::current_exception();
+          }
           next_load_ms = 1e3 * Seconds(t0);
         },
         [&] {
@@ -256,6 +264,7 @@ int RunFusion(int argc, char** argv) {
           }
           r = system.AddFrame(current.depth_m, current.rgb, given);
         });
+    if (load_error) std::rethrow_exception(load_error);
     load_ms += next_load_ms;
     preprocess_ms += r.preprocess_ms;
     track_ms += r.track_ms;
@@ -323,7 +332,7 @@ int RunFusion(int argc, char** argv) {
   options.WriteConfig(output.File("config.yaml"));
   output.Commit();
   if (pose_source == "icp" && untracked > 0) {
-    LogWarning("fusion: {} of {} frames kept the constant-velocity prediction (too few ICP "
+    LogWarning("fusion: {} of {} frames kept the initial guess of tracking (too few ICP "
                "matches)",
                untracked, num_frames - 1);
   }

@@ -225,11 +225,33 @@ ProjectiveIcpResult RegisterProjective(const VertexNormalMap& source,
         for (int y = x; y < 6; ++y) H(x, y) = H(y, x) = total.h[k++];
         g(x) = total.g[x];
       }
-      // Tiny Levenberg damping (1e-9 of the mean diagonal): keeps unobservable
-      // directions finite without moving observable ones.
-      Mat6 damped = H;
-      damped.diagonal().array() += 1e-9 * H.trace() / 6.0 + 1e-12;
-      const Vec6 xi = -damped.llt().solve(g);
+      // Directions the matches do not constrain (a corridor's axis, a wall's plane):
+      // eigenvalues of the scaled Hessian D H D (D = diag(1/L I3, I3), L the RMS
+      // range of the matches) below a tenth of degeneracy_threshold times the
+      // largest. There the step is zero, so the initial guess (the caller's motion
+      // prediction) is kept (solution remapping, Zhang et al. 2016); elsewhere the
+      // step is the Cholesky solution of the normal equations.
+      const double range_m = std::sqrt(std::max(total.point_sq / total.count, 1e-12));
+      Vec6 d;
+      d << Eigen::Vector3d::Constant(1.0 / range_m), Eigen::Vector3d::Ones();
+      const Eigen::SelfAdjointEigenSolver<Mat6> eig(d.asDiagonal() * H * d.asDiagonal());
+      const double min_eig = 0.1 * options.degeneracy_threshold * eig.eigenvalues()(5);
+      Vec6 xi;
+      if (eig.eigenvalues()(0) >= min_eig && eig.eigenvalues()(0) > 0) {
+        // Tiny Levenberg damping (1e-9 of the mean diagonal) against rounding.
+        Mat6 damped = H;
+        damped.diagonal().array() += 1e-9 * H.trace() / 6.0 + 1e-12;
+        xi = -damped.llt().solve(g);
+      } else {
+        const Vec6 rhs = eig.eigenvectors().transpose() * (-(d.asDiagonal() * g));
+        Vec6 scaled_step = Vec6::Zero();
+        for (int e = 0; e < 6; ++e) {
+          if (eig.eigenvalues()(e) >= min_eig && eig.eigenvalues()(e) > 0) {
+            scaled_step += eig.eigenvectors().col(e) * (rhs(e) / eig.eigenvalues()(e));
+          }
+        }
+        xi = d.asDiagonal() * scaled_step;
+      }
       if (!xi.allFinite()) break;
       T = SE3(so3::Exp(xi.head<3>()), xi.tail<3>()) * T;
       last_h = H;

@@ -18,6 +18,9 @@
 // xi = [omega; dt] (rad, m). Each iteration solves the normal equations
 // (sum w A^T A) xi = -(sum w A^T b) by Cholesky (LLT with a tiny Levenberg damping)
 // and applies T <- (Exp(omega), dt) T. Weights w are Huber IRLS weights of b_i.
+// Unconstrained directions (scaled-Hessian eigenvalues below a tenth of
+// degeneracy_threshold times the largest; a corridor's axis) get no step, so the
+// initial guess is kept along them (solution remapping, Zhang et al. 2016).
 //
 // Coarse to fine: level l (l = num_levels-1 .. 0) uses every 2^l-th source pixel in
 // both directions and a distance threshold of 2^l d_thr (coarse levels pull in

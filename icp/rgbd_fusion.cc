@@ -146,7 +146,8 @@ RgbdFrameResult RgbdFusion::AddFrame(const std::vector<float>& depth_m,
     result.world_from_camera = world_from_camera ? *world_from_camera : SE3();
   } else {
     // model_ holds the model at previous_ (rendered after the last fusion).
-    const SE3 initial = previous_motion_;  // previous_from_current, constant velocity
+    // previous_from_current: the last motion (constant velocity) or none.
+    const SE3 initial = options_.constant_velocity ? previous_motion_ : SE3();
     result.icp = RegisterProjective(frame_.map, model_, intrinsics_, initial, icp_options_);
     result.tracked = result.icp.num_inliers >= static_cast<size_t>(icp_options_.min_inliers) &&
                      result.icp.target_from_source.translation().allFinite();

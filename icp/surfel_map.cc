@@ -19,13 +19,14 @@ namespace {
 constexpr double kDegToRad = M_PI / 180.0;
 constexpr uint64_t kEmptyKey = ~uint64_t{0};
 
-// z-buffer key: the depth's bits (positive floats order like their bit patterns)
-// above the surfel index, so that the atomic minimum keeps the nearest surfel and,
-// at equal depth, the lower index.
-uint64_t Key(float z, uint32_t index) {
+// z-buffer key: a splat flag (bit 63), the depth's bits (bits 32-62: positive
+// floats order like their bit patterns and have a zero sign bit) and the surfel
+// index, so that the atomic minimum keeps a surfel whose centre falls into the
+// pixel over any splatted disc, then the nearest, then the lower index.
+uint64_t Key(float z, uint32_t index, bool splatted) {
   uint32_t bits;
   std::memcpy(&bits, &z, sizeof(bits));
-  return (static_cast<uint64_t>(bits) << 32) | index;
+  return (static_cast<uint64_t>(splatted) << 63) | (static_cast<uint64_t>(bits) << 32) | index;
 }
 
 void AtomicMin(std::atomic<uint64_t>* a, uint64_t value) {
@@ -98,7 +99,7 @@ void SurfelMap::RenderIndexMap(const SE3& world_from_camera,
           const float uf = fx * p.x() * inv_z + cx + 0.5f, vf = fy * p.y() * inv_z + cy + 0.5f;
           if (!(uf >= -splat && vf >= -splat && uf < w + splat && vf < h + splat)) continue;
           const int u = static_cast<int>(std::floor(uf)), v = static_cast<int>(std::floor(vf));
-          const uint64_t key = Key(p.z(), static_cast<uint32_t>(i));
+          const uint64_t key = Key(p.z(), static_cast<uint32_t>(i), false);
           if (splat == 0) {
             if (u < 0 || v < 0 || u >= w || v >= h) continue;
             AtomicMin(&zb[static_cast<size_t>(v) * w + u], key);
@@ -107,6 +108,8 @@ void SurfelMap::RenderIndexMap(const SE3& world_from_camera,
           const float radius_px = s.radius_m * fx * inv_z;
           const int reach = std::min(splat, static_cast<int>(radius_px));
           const float r2 = std::max(radius_px * radius_px, 0.25f);
+          const Eigen::Vector3f n = R * s.normal;
+          const float n_dot_p = n.dot(p);
           for (int dv = -reach; dv <= reach; ++dv) {
             const int vv = v + dv;
             if (vv < 0 || vv >= h) continue;
@@ -114,7 +117,21 @@ void SurfelMap::RenderIndexMap(const SE3& world_from_camera,
               const int uu = u + du;
               if (uu < 0 || uu >= w) continue;
               if (static_cast<float>(du * du + dv * dv) > r2 && (du != 0 || dv != 0)) continue;
-              AtomicMin(&zb[static_cast<size_t>(vv) * w + uu], key);
+              if (du == 0 && dv == 0) {
+                AtomicMin(&zb[static_cast<size_t>(vv) * w + uu], key);
+                continue;
+              }
+              // The depth where the pixel's ray meets the surfel's disc (its plane);
+              // the centre's depth when the ray is nearly parallel to it.
+              float z = p.z();
+              const Eigen::Vector3f ray((uu - cx) / fx, (vv - cy) / fy, 1.f);
+              const float n_dot_ray = n.dot(ray);
+              if (n_dot_ray < -1e-3f) {
+                const float zi = n_dot_p / n_dot_ray;
+                if (zi > 0 && std::abs(zi - p.z()) < 4.f * s.radius_m) z = zi;
+              }
+              AtomicMin(&zb[static_cast<size_t>(vv) * w + uu],
+                        Key(z, static_cast<uint32_t>(i), true));
             }
           }
         }
@@ -125,7 +142,8 @@ void SurfelMap::RenderIndexMap(const SE3& world_from_camera,
                     [&](const tbb::blocked_range<size_t>& r) {
                       for (size_t i = r.begin(); i != r.end(); ++i) {
                         const uint64_t key = zb[i].load(std::memory_order_relaxed);
-                        out[i] = key == kEmptyKey ? kNoSurfel : static_cast<uint32_t>(key);
+                        out[i] = key == kEmptyKey ? kNoSurfel
+                                                  : static_cast<uint32_t>(key & 0xffffffffu);
                       }
                     });
 }
@@ -148,8 +166,24 @@ void SurfelMap::RenderVertexNormalMap(const SE3& world_from_camera,
       out->vertices[i] = Eigen::Vector3f(nan, nan, 0.f);
       out->normals[i].setZero();
     } else {
-      out->vertices[i] = R * surfels_[s].position + t;
-      out->normals[i] = R * surfels_[s].normal;
+      // The point where the pixel's ray meets the surfel's plane (so that the
+      // vertex lies on the ray, like a measured one), or the surfel centre when the
+      // ray is nearly parallel to the plane or meets it beyond the disc's reach.
+      const Eigen::Vector3f p = R * surfels_[s].position + t;
+      const Eigen::Vector3f n = R * surfels_[s].normal;
+      const int u = static_cast<int>(i % K.width), v = static_cast<int>(i / K.width);
+      const Eigen::Vector3f ray(static_cast<float>((u - K.cx) / K.fx),
+                                static_cast<float>((v - K.cy) / K.fy), 1.f);
+      const float n_dot_ray = n.dot(ray);
+      Eigen::Vector3f q = p;
+      if (n_dot_ray < -1e-3f) {
+        const Eigen::Vector3f qi = ray * (n.dot(p) / n_dot_ray);
+        if (qi.z() > 0 && (qi - p).squaredNorm() < 16.f * surfels_[s].radius_m * surfels_[s].radius_m) {
+          q = qi;
+        }
+      }
+      out->vertices[i] = q;
+      out->normals[i] = n;
     }
   });
 }

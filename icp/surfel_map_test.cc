@@ -59,8 +59,8 @@ TEST(SurfelMap, MergeIsConfidenceWeightedAverage) {
   // Too far (3 cm > 2 cm): a new surfel.
   stats = map.Fuse(CentreFrame({0, 0, 1.03f}, n1), world_from_camera, 3);
   EXPECT_EQ(stats.added, 1u);
-  // Normals 30 deg apart (> 20 deg): a new surfel.
-  const Eigen::Vector3f tilted(std::sin(0.52f), 0, -std::cos(0.52f));
+  // Normals 60 deg apart (> 45 deg): a new surfel.
+  const Eigen::Vector3f tilted(std::sin(1.05f), 0, -std::cos(1.05f));
   stats = map.Fuse(CentreFrame({0, 0, 1.0f}, tilted), world_from_camera, 4);
   EXPECT_EQ(stats.added, 1u);
 }
