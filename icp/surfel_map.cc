@@ -1,13 +1,13 @@
 #include "icp/surfel_map.h"
 
+#include <fmt/format.h>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
 #include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <limits>
-
-#include <fmt/format.h>
-#include <tbb/blocked_range.h>
-#include <tbb/parallel_for.h>
 
 #include "core/errors.h"
 #include "core/option_check.h"
@@ -31,8 +31,7 @@ uint64_t Key(float z, uint32_t index, bool splatted) {
 
 void AtomicMin(std::atomic<uint64_t>* a, uint64_t value) {
   uint64_t current = a->load(std::memory_order_relaxed);
-  while (value < current &&
-         !a->compare_exchange_weak(current, value, std::memory_order_relaxed)) {
+  while (value < current && !a->compare_exchange_weak(current, value, std::memory_order_relaxed)) {
   }
 }
 
@@ -40,10 +39,10 @@ void AtomicMin(std::atomic<uint64_t>* a, uint64_t value) {
 
 bool SurfelFusionOptions::Check() const {
   CHECK_OPTION_GT(max_merge_distance_m, 0.0);
-  CHECK_OPTION_MSG(max_merge_angle_deg, max_merge_angle_deg > 0 && max_merge_angle_deg <= 180,
-                   "in (0, 180]");
-  CHECK_OPTION_MSG(association_radius_px, association_radius_px >= 0 && association_radius_px <= 3,
-                   "in [0, 3]");
+  CHECK_OPTION_MSG(
+      max_merge_angle_deg, max_merge_angle_deg > 0 && max_merge_angle_deg <= 180, "in (0, 180]");
+  CHECK_OPTION_MSG(
+      association_radius_px, association_radius_px >= 0 && association_radius_px <= 3, "in [0, 3]");
   CHECK_OPTION_GE(unstable_age_frames, 0);
   CHECK_OPTION_GE(unstable_min_confidence, 0.0);
   CHECK_OPTION_GE(output_min_confidence, 0.0);
@@ -85,15 +84,17 @@ void SurfelMap::RenderIndexMap(const SE3& world_from_camera,
   const float fx = static_cast<float>(K.fx), fy = static_cast<float>(K.fy);
   const float cx = static_cast<float>(K.cx), cy = static_cast<float>(K.cy);
   const float min_conf = static_cast<float>(min_confidence);
+  const Eigen::Vector3f centre = world_from_camera.translation().cast<float>();
   const int w = K.width, h = K.height;
   tbb::parallel_for(
-      tbb::blocked_range<size_t>(0, surfels_.size(), 8192), [&](const tbb::blocked_range<size_t>& r) {
+      tbb::blocked_range<size_t>(0, surfels_.size(), 8192),
+      [&](const tbb::blocked_range<size_t>& r) {
         for (size_t i = r.begin(); i != r.end(); ++i) {
           const Surfel& s = surfels_[i];
           if (s.confidence < min_conf) continue;
           const Eigen::Vector3f p = R * s.position + t;
           if (!(p.z() > 0)) continue;
-          if ((R * s.normal).dot(p) > 0) continue;  // facing away from the camera
+          if (s.normal.dot(s.position - centre) > 0) continue;  // facing away from the camera
           const float inv_z = 1.f / p.z();
           // Nearest pixel: floor(x + 0.5); far outside the image is skipped before the cast.
           const float uf = fx * p.x() * inv_z + cx + 0.5f, vf = fy * p.y() * inv_z + cy + 0.5f;
@@ -138,14 +139,13 @@ void SurfelMap::RenderIndexMap(const SE3& world_from_camera,
       });
   index_map->resize(num_pixels);
   uint32_t* out = index_map->data();
-  tbb::parallel_for(tbb::blocked_range<size_t>(0, num_pixels, 4096),
-                    [&](const tbb::blocked_range<size_t>& r) {
-                      for (size_t i = r.begin(); i != r.end(); ++i) {
-                        const uint64_t key = zb[i].load(std::memory_order_relaxed);
-                        out[i] = key == kEmptyKey ? kNoSurfel
-                                                  : static_cast<uint32_t>(key & 0xffffffffu);
-                      }
-                    });
+  tbb::parallel_for(
+      tbb::blocked_range<size_t>(0, num_pixels, 4096), [&](const tbb::blocked_range<size_t>& r) {
+        for (size_t i = r.begin(); i != r.end(); ++i) {
+          const uint64_t key = zb[i].load(std::memory_order_relaxed);
+          out[i] = key == kEmptyKey ? kNoSurfel : static_cast<uint32_t>(key & 0xffffffffu);
+        }
+      });
 }
 
 void SurfelMap::RenderVertexNormalMap(const SE3& world_from_camera,
@@ -172,13 +172,14 @@ void SurfelMap::RenderVertexNormalMap(const SE3& world_from_camera,
       const Eigen::Vector3f p = R * surfels_[s].position + t;
       const Eigen::Vector3f n = R * surfels_[s].normal;
       const int u = static_cast<int>(i % K.width), v = static_cast<int>(i / K.width);
-      const Eigen::Vector3f ray(static_cast<float>((u - K.cx) / K.fx),
-                                static_cast<float>((v - K.cy) / K.fy), 1.f);
+      const Eigen::Vector3f ray(
+          static_cast<float>((u - K.cx) / K.fx), static_cast<float>((v - K.cy) / K.fy), 1.f);
       const float n_dot_ray = n.dot(ray);
       Eigen::Vector3f q = p;
       if (n_dot_ray < -1e-3f) {
         const Eigen::Vector3f qi = ray * (n.dot(p) / n_dot_ray);
-        if (qi.z() > 0 && (qi - p).squaredNorm() < 16.f * surfels_[s].radius_m * surfels_[s].radius_m) {
+        if (qi.z() > 0 &&
+            (qi - p).squaredNorm() < 16.f * surfels_[s].radius_m * surfels_[s].radius_m) {
           q = qi;
         }
       }
@@ -194,10 +195,15 @@ FuseStats SurfelMap::Fuse(const FusionFrame& frame, const SE3& world_from_camera
   if (num_pixels == 0 || frame.map.width != K.width || frame.map.height != K.height ||
       frame.map.vertices.size() != num_pixels || frame.map.normals.size() != num_pixels ||
       (!frame.colors.empty() && frame.colors.size() != num_pixels)) {
-    throw InputError("fusion frame", fmt::format("frame {}", frame_index),
-                     fmt::format("expected {}x{} vertices, normals and colours, found {}, {} and {}",
-                                 K.width, K.height, frame.map.vertices.size(),
-                                 frame.map.normals.size(), frame.colors.size()));
+    throw InputError(
+        "fusion frame",
+        fmt::format("frame {}", frame_index),
+        fmt::format("expected {}x{} vertices, normals and colours, found {}, {} and {}",
+                    K.width,
+                    K.height,
+                    frame.map.vertices.size(),
+                    frame.map.normals.size(),
+                    frame.colors.size()));
   }
   FuseStats stats;
   RenderIndexMap(world_from_camera, K, 0.0, 0, &index_map_);
@@ -322,9 +328,11 @@ size_t SurfelMap::RemoveUnstable(int frame_index) {
   const float min_conf = static_cast<float>(options_.unstable_min_confidence);
   const int age = options_.unstable_age_frames;
   const size_t before = surfels_.size();
-  surfels_.erase(std::remove_if(surfels_.begin(), surfels_.end(),
+  surfels_.erase(std::remove_if(surfels_.begin(),
+                                surfels_.end(),
                                 [&](const Surfel& s) {
-                                  return frame_index - s.first_seen > age && s.confidence < min_conf;
+                                  return frame_index - s.first_seen > age &&
+                                         s.confidence < min_conf;
                                 }),
                  surfels_.end());
   return before - surfels_.size();

@@ -47,12 +47,12 @@
 namespace lisfm {
 
 struct Surfel {
-  Eigen::Vector3f position;    // world frame (m)
-  Eigen::Vector3f normal;      // world frame, unit
-  float radius_m = 0;          // disc radius (m)
-  float confidence = 0;        // w: number of merged observations
-  int32_t first_seen = 0;      // frame index of the first observation
-  int32_t last_seen = 0;       // frame index of the last merged observation
+  Eigen::Vector3f position;        // world frame (m)
+  Eigen::Vector3f normal;          // world frame, unit
+  float radius_m = 0;              // disc radius (m)
+  float confidence = 0;            // w: number of merged observations
+  int32_t first_seen = 0;          // frame index of the first observation
+  int32_t last_seen = 0;           // frame index of the last merged observation
   std::array<uint8_t, 3> color{};  // RGB
 };
 

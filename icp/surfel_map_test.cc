@@ -1,10 +1,10 @@
 #include "icp/surfel_map.h"
 
+#include <gtest/gtest.h>
+
 #include <algorithm>
 #include <cmath>
 #include <random>
-
-#include <gtest/gtest.h>
 
 #include "core/errors.h"
 #include "icp/rgbd_fusion.h"
@@ -147,9 +147,8 @@ TEST(RgbdFusion, GivenPosesPutSurfelsOnTheWalls) {
 TEST(RgbdFusion, TracksKnownTrajectory) {
   RgbdFusion fusion(kFull, RgbdFusionOptions(), ProjectiveIcpOptions(), SurfelFusionOptions());
   for (int k = 0; k < 20; ++k) {
-    const RgbdFrameResult r =
-        fusion.AddFrame(RenderDepth(PoseAt(k)), {}, k == 0 ? std::optional<SE3>(PoseAt(0))
-                                                           : std::nullopt);
+    const RgbdFrameResult r = fusion.AddFrame(
+        RenderDepth(PoseAt(k)), {}, k == 0 ? std::optional<SE3>(PoseAt(0)) : std::nullopt);
     if (k > 0) {
       EXPECT_TRUE(r.tracked) << k << ": " << r.icp.message;
       EXPECT_TRUE(r.icp.converged) << k << ": " << r.icp.message;

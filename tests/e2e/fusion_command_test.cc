@@ -83,11 +83,11 @@ class FusionCommand : public ::testing::Test {
   static void SetUpTestSuite() {
     dir_ = new TempDir();
     std::string out;
-    const int rc = RunCommand(
-        LisfmBinary() + " simulate --output_path " + dir_->File("seq") +
-            " --duration 3 --rgbd 1 --rgbd_rate 10 --camera_rate 0 --lidars none "
-            "--error_sources none --Walk.stationary_s 0.5 --Walk.num_stops 2",
-        &out);
+    const int rc =
+        RunCommand(LisfmBinary() + " simulate --output_path " + dir_->File("seq") +
+                       " --duration 3 --rgbd 1 --rgbd_rate 10 --camera_rate 0 --lidars none "
+                       "--error_sources none --Walk.stationary_s 0.5 --Walk.num_stops 2",
+                   &out);
     ASSERT_EQ(rc, 0) << out;
   }
   static void TearDownTestSuite() { delete dir_; }
@@ -98,11 +98,12 @@ class FusionCommand : public ::testing::Test {
     EXPECT_EQ(RunCommand("cp -r " + Seq() + " " + tmp.File("seq"), &out), 0) << out;
     return tmp.File("seq");
   }
-  static void ExpectFails(const std::string& args, int code, const std::string& message,
+  static void ExpectFails(const std::string& args,
+                          int code,
+                          const std::string& message,
                           const std::string& output_path) {
     std::string out;
-    EXPECT_EQ(RunCommand(LisfmBinary() + " fusion " + args + " --output_path " + output_path,
-                         &out),
+    EXPECT_EQ(RunCommand(LisfmBinary() + " fusion " + args + " --output_path " + output_path, &out),
               code)
         << out;
     EXPECT_NE(out.find(message), std::string::npos) << out;
@@ -130,13 +131,20 @@ TEST_F(FusionCommand, GroundTruthPosesPutSurfelsOnTheScene) {
             0)
       << out;
   EXPECT_NE(out.find("fusion: 31 frames (320x240)"), std::string::npos) << out;
-  for (const char* f : {"trajectory.txt", "surfels.ply", "fusion_summary.json",
-                        "normals_first_camera.png", "normals_last_camera.png", "config.yaml"}) {
+  for (const char* f : {"trajectory.txt",
+                        "surfels.ply",
+                        "fusion_summary.json",
+                        "normals_first_camera.png",
+                        "normals_last_camera.png",
+                        "config.yaml"}) {
     EXPECT_TRUE(FileExists(out_dir + "/" + f)) << f;
   }
   const std::string summary = ReadFile(out_dir + "/fusion_summary.json");
-  for (const char* key : {"\"frames\": 31", "\"compression_ratio\"", "\"bytes_per_surfel\": 44",
-                          "\"stage_ms\"", "\"surfels\""}) {
+  for (const char* key : {"\"frames\": 31",
+                          "\"compression_ratio\"",
+                          "\"bytes_per_surfel\": 44",
+                          "\"stage_ms\"",
+                          "\"surfels\""}) {
     EXPECT_NE(summary.find(key), std::string::npos) << key << "\n" << summary;
   }
   // Scene triangles: 3 float vertices each, in order.
@@ -170,11 +178,11 @@ TEST_F(FusionCommand, GroundTruthPosesPutSurfelsOnTheScene) {
 
   // The written trajectory read back as --pose_source trajectory gives the same map.
   const std::string again = tmp.File("again");
-  ASSERT_EQ(RunCommand(LisfmBinary() + " fusion --input_path " + Seq() + " --output_path " +
-                           again + " --pose_source trajectory --trajectory_path " + out_dir +
-                           "/trajectory.txt",
-                       &out),
-            0)
+  ASSERT_EQ(
+      RunCommand(LisfmBinary() + " fusion --input_path " + Seq() + " --output_path " + again +
+                     " --pose_source trajectory --trajectory_path " + out_dir + "/trajectory.txt",
+                 &out),
+      0)
       << out;
   EXPECT_EQ(ReadFile(again + "/surfels.ply"), ReadFile(out_dir + "/surfels.ply"));
 
@@ -189,7 +197,9 @@ TEST_F(FusionCommand, GroundTruthPosesPutSurfelsOnTheScene) {
   test::WriteText(tmp.File("gap.txt"), kept);
   ExpectFails("--input_path " + Seq() + " --pose_source trajectory --trajectory_path " +
                   tmp.File("gap.txt"),
-              1, "expected a pose at the time of frame", tmp.File("gap_out"));
+              1,
+              "expected a pose at the time of frame",
+              tmp.File("gap_out"));
 }
 
 // Frame-to-model tracking on the first 60 real Kinect frames of the 7-Scenes subset
@@ -200,7 +210,8 @@ TEST_F(FusionCommand, GroundTruthPosesPutSurfelsOnTheScene) {
 // unconstrained for depth-only tracking.
 TEST_F(FusionCommand, TracksRealKinectFrames) {
   const std::string data = test::SharedData("rgbd_7scenes_subset");
-  if (data.empty() || !DirExists(data)) GTEST_SKIP() << "../shared/data/rgbd_7scenes_subset missing";
+  if (data.empty() || !DirExists(data))
+    GTEST_SKIP() << "../shared/data/rgbd_7scenes_subset missing";
   TempDir tmp;
   std::string out;
   ASSERT_EQ(RunCommand(LisfmBinary() + " fusion --input_path " + data + " --output_path " +
@@ -220,9 +231,9 @@ TEST_F(FusionCommand, TracksRealKinectFrames) {
   ASSERT_EQ(t_icp.size(), 60u);
   double max_error = 0;
   for (size_t i = 0; i < icp.size(); i += 3) {
-    max_error = std::max(max_error, (Vec3(icp[i], icp[i + 1], icp[i + 2]) -
-                                     Vec3(gt[i], gt[i + 1], gt[i + 2]))
-                                        .norm());
+    max_error =
+        std::max(max_error,
+                 (Vec3(icp[i], icp[i + 1], icp[i + 2]) - Vec3(gt[i], gt[i + 1], gt[i + 2])).norm());
   }
   EXPECT_LT(max_error, 0.03);
 }
@@ -230,9 +241,13 @@ TEST_F(FusionCommand, TracksRealKinectFrames) {
 TEST_F(FusionCommand, BadInputFailsCleanly) {
   TempDir tmp;
   // Usage errors: exit 2.
-  ExpectFails("--input_path " + Seq() + " --pose_source trajectory", 2,
-              "--pose_source trajectory needs --trajectory_path", tmp.File("o1"));
-  ExpectFails("--input_path " + Seq() + " --Fusion.downsample_factor 0", 2, "downsample_factor",
+  ExpectFails("--input_path " + Seq() + " --pose_source trajectory",
+              2,
+              "--pose_source trajectory needs --trajectory_path",
+              tmp.File("o1"));
+  ExpectFails("--input_path " + Seq() + " --Fusion.downsample_factor 0",
+              2,
+              "downsample_factor",
               tmp.File("o2"));
   ExpectFails("--input_path " + tmp.File("nothing"), 1, "nothing", tmp.File("o3"));
 
@@ -271,8 +286,8 @@ TEST_F(FusionCommand, BadInputFailsCleanly) {
   // --pose_source groundtruth without ground truth.
   ASSERT_EQ(std::remove((seq2 + "/groundtruth.txt").c_str()), 0);
   test::WriteText(seq2 + "/rgbd0/camera.yaml", ReadFile(Seq() + "/rgbd0/camera.yaml"));
-  ExpectFails("--input_path " + seq2 + " --pose_source groundtruth", 1, "groundtruth",
-              tmp.File("o7"));
+  ExpectFails(
+      "--input_path " + seq2 + " --pose_source groundtruth", 1, "groundtruth", tmp.File("o7"));
 }
 
 }  // namespace
