@@ -34,5 +34,6 @@ int RunBagImporter(int argc, char** argv);       // bag_commands.cc
 int RunBagExporter(int argc, char** argv);       // bag_commands.cc
 int RunKittiImporter(int argc, char** argv);     // kitti_command.cc
 int RunPipeline(int argc, char** argv);          // pipeline_command.cc
+int RunFusion(int argc, char** argv);            // fusion_command.cc
 
 }  // namespace lisfm
