@@ -312,6 +312,11 @@ TEST(LioOdometry, OnlineCalibrationMovesTowardTheTruth) {
   LioOptions options;
   options.estimate_extrinsic = true;
   options.estimate_time_offset = true;
+  // The LiDAR calibration alone (this recording has no gyro scale error). With
+  // the gyro intrinsics E also estimated, the attitude corrections after turns
+  // are shared between E and the extrinsic rotation, which then stays at
+  // 0.22 deg here (measured; docs/notes/lio_stairwell.md).
+  options.estimate_gyro_scale = false;
   const LioRun estimated = RunLio(seq, options, {0});
   ASSERT_GT(estimated.trajectory.size(), 270u);
   const LidarCalibrationEstimate& c = estimated.calibration[0];
