@@ -273,6 +273,21 @@ int RunLio(int argc, char** argv) {
     LogInfo("lio calibration (calibration.yaml): {}",
             CalibrationSummary(seq.rig, used, calibration));
   }
+  if (lio.estimate_gyro_scale) {
+    const Mat3& E = odom.gyro_scale_error();
+    LogInfo(
+        "lio gyro intrinsics: measured = (I + E) true + bias, E (%) = [{:.3f} {:.3f} {:.3f}; "
+        "{:.3f} {:.3f} {:.3f}; {:.3f} {:.3f} {:.3f}]",
+        100 * E(0, 0),
+        100 * E(0, 1),
+        100 * E(0, 2),
+        100 * E(1, 0),
+        100 * E(1, 1),
+        100 * E(1, 2),
+        100 * E(2, 0),
+        100 * E(2, 1),
+        100 * E(2, 2));
+  }
   return 0;
 }
 

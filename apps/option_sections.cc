@@ -553,6 +553,16 @@ void AddLioOptions(OptionManager* options, LioOptions* lio) {
                      "ms, prior 1-sigma of the rig.yaml LiDAR time offset "
                      "(with Lio.estimate_time_offset)",
                      R::GreaterThan(0));
+  options->AddBool("Lio.estimate_gyro_scale",
+                   &lio->estimate_gyro_scale,
+                   "estimate the gyroscope's scale-factor and cross-axis error matrix E "
+                   "(measured = (I + E) true + bias; 9 states) online");
+  options->AddDouble("Lio.gyro_scale_std",
+                     &lio->gyro_scale_std,
+                     "prior 1-sigma of each entry of E (fraction; Bosch BMI085 datasheet: "
+                     "sensitivity tolerance and cross-axis sensitivity 1 % typ; with "
+                     "Lio.estimate_gyro_scale)",
+                     R::GreaterThan(0));
   AddVoxelMapOptions(options, &lio->map);
   AddImuInitializerOptions(options, &lio->init);
   options->AddStructCheck([lio] { return lio->Check(); });

@@ -111,6 +111,7 @@ bool LioOptions::Check() const {
   CHECK_OPTION_GT(extrinsic_rotation_std_deg, 0.0);
   CHECK_OPTION_GT(extrinsic_translation_std, 0.0);
   CHECK_OPTION_GT(time_offset_std_ms, 0.0);
+  CHECK_OPTION_GT(gyro_scale_std, 0.0);
   return true;
 }
 
@@ -133,9 +134,18 @@ LioOdometry::LioOdometry(const LioOptions& options,
   calibration_block_ =
       (options_.estimate_extrinsic ? 6 : 0) + (options_.estimate_time_offset ? 1 : 0);
   time_offset_change_s_.assign(num_lidars, 0.0);
-  const int num_calib = num_lidars * calibration_block_;
+  int num_calib = num_lidars * calibration_block_;
+  if (options_.estimate_gyro_scale) {
+    gyro_scale_index_ = num_calib;
+    num_calib += 9;
+  }
   P_core_calib_ = Eigen::MatrixXd::Zero(18, num_calib);
   P_calib_ = Eigen::MatrixXd::Zero(num_calib, num_calib);
+  if (gyro_scale_index_ >= 0) {
+    P_calib_.diagonal()
+        .segment<9>(gyro_scale_index_)
+        .setConstant(options_.gyro_scale_std * options_.gyro_scale_std);
+  }
   const double rot_var = std::pow(options_.extrinsic_rotation_std_deg * M_PI / 180.0, 2);
   const double trans_var = std::pow(options_.extrinsic_translation_std, 2);
   const double time_var = std::pow(options_.time_offset_std_ms * 1e-3, 2);
@@ -255,7 +265,7 @@ bool LioOdometry::TryInitialize() {
 }
 
 void LioOdometry::PropagateStep(const Vec3& gyro, const Vec3& accel, double dt) {
-  const Vec3 w = gyro - bg_;
+  const Vec3 w = gyro - bg_ - gyro_scale_ * gyro;
   const Vec3 a = accel * init_.accel_scale - ba_;
   const Mat3 R = R_.toRotationMatrix();
   const Vec3 a_world = R * a + g_;
@@ -279,7 +289,22 @@ void LioOdometry::PropagateStep(const Vec3& gyro, const Vec3& accel, double dt) 
   P_ = F * P_ * F.transpose();
   // The calibration is constant: only its cross-covariance moves. (A
   // coefficient-wise product: 18 x K·block is too small for a blocked GEMM.)
-  if (calibration_block_ > 0) P_core_calib_ = F.lazyProduct(P_core_calib_);
+  if (P_core_calib_.cols() > 0) P_core_calib_ = F.lazyProduct(P_core_calib_);
+  if (gyro_scale_index_ >= 0) {
+    // The augmented transition [[F, G], [0, I]], G = d dθ / d vec(E) =
+    // -J_r(w dt) dt [gyro_x I, gyro_y I, gyro_z I] in the θ rows (w = gyro - bg - E gyro):
+    // P_core += A Gᵀ + G Aᵀ + G P_EE Gᵀ and P_core_E = A + G P_EE, with A = F P_core_E.
+    Eigen::Matrix<double, 3, 9> G;
+    const Mat3 J = -so3::RightJacobian(w * dt) * dt;
+    for (int j = 0; j < 3; ++j) G.middleCols<3>(3 * j) = J * gyro(j);
+    const int e = gyro_scale_index_;
+    const Eigen::Matrix<double, 18, 3> AGt = P_core_calib_.middleCols<9>(e) * G.transpose();
+    const Mat3 GPGt = G * P_calib_.block<9, 9>(e, e) * G.transpose();
+    P_.middleCols<3>(kTheta) += AGt;
+    P_.middleRows<3>(kTheta) += AGt.transpose();
+    P_.block<3, 3>(kTheta, kTheta) += GPGt;
+    P_core_calib_.middleRows<3>(kTheta) += G * P_calib_.middleRows<9>(e);
+  }
   P_.block<3, 3>(kTheta, kTheta).diagonal().array() += sg * sg * dt;
   P_.block<3, 3>(kVel, kVel).diagonal().array() += sa * sa * dt;
   P_.block<3, 3>(kBg, kBg).diagonal().array() += sbg * sbg * dt;
@@ -294,7 +319,7 @@ bool LioOdometry::PropagateTo(TimestampNs t_ns, std::vector<PoseSample>* history
     s.R = R_;
     s.p = p_;
     s.v = v_;
-    s.omega = gyro_mean - bg_;
+    s.omega = gyro_mean - bg_ - gyro_scale_ * gyro_mean;
     s.acc_world = R_ * (acc_mean * init_.accel_scale - ba_) + g_;
     history->push_back(s);
   };
@@ -543,6 +568,7 @@ LioFrameResult LioOdometry::ProcessFrame(const std::vector<LidarScanInput>& scan
   // 3. Iterated update (information form).
   const Quat R_pred = R_;
   const Vec3 p_pred = p_, v_pred = v_, bg_pred = bg_, ba_pred = ba_, g_pred = g_;
+  const Mat3 gyro_scale_pred = gyro_scale_;
   const double inv_var = 1.0 / (options_.point_noise_std * options_.point_noise_std);
   std::vector<Vec4> planes(body.size());
   std::vector<char> plane_ok(body.size(), 0);
@@ -550,9 +576,13 @@ LioFrameResult LioOdometry::ProcessFrame(const std::vector<LidarScanInput>& scan
   // With the calibration in the state (lio/point_to_plane.h): the prior is the
   // calibration the frame was de-skewed with; the iterate of LiDAR k is
   // (q_e[k], t_e[k]) and the time-offset change dt_d[k] since the prior.
+  // The gyro intrinsics have no measurement columns: with them alone the
+  // points give the 6x6 pose information of the 18-state filter, solved with
+  // the extra states (`extra_states`).
   const bool calibrate = calibration_block_ > 0;
+  const bool extra_states = P_calib_.rows() > 0;
   const size_t num_lidars = imu_from_lidar_.size();
-  const int num_states = 18 + static_cast<int>(num_lidars) * calibration_block_;
+  const int num_states = 18 + static_cast<int>(P_calib_.rows());
   std::vector<Quat> q_e(num_lidars);
   std::vector<Vec3> t_e(num_lidars);
   std::vector<double> dt_d(num_lidars, 0.0);
@@ -573,6 +603,8 @@ LioFrameResult LioOdometry::ProcessFrame(const std::vector<LidarScanInput>& scan
     for (size_t i = 0; i < body.size(); ++i) {
       x_lidar[i] = lidar_from_imu[attributes[i].sensor_id] * body[i].cast<double>();
     }
+  }
+  if (extra_states) {
     Eigen::MatrixXd P_full(num_states, num_states);
     P_full << P_, P_core_calib_, P_core_calib_.transpose(), P_calib_;
     P_inv_full = P_full.ldlt().solve(Eigen::MatrixXd::Identity(num_states, num_states));
@@ -728,7 +760,7 @@ LioFrameResult LioOdometry::ProcessFrame(const std::vector<LidarScanInput>& scan
     d.segment<3>(kBg) = bg_ - bg_pred;
     d.segment<3>(kBa) = ba_ - ba_pred;
     d.segment<3>(kGrav) = g_ - g_pred;
-    if (!calibrate) {
+    if (!extra_states) {
       normal = accumulate(R_.toRotationMatrix(), p_);
       if (normal.count < 6) return false;
       Mat18 A = P_inv;
@@ -738,10 +770,14 @@ LioFrameResult LioOdometry::ProcessFrame(const std::vector<LidarScanInput>& scan
       *delta = A.ldlt().solve(b);
       return true;
     }
-    normal_calib = accumulate_calibrated(R_.toRotationMatrix(), p_);
-    normal = pose_block(normal_calib);
+    if (calibrate) {
+      normal_calib = accumulate_calibrated(R_.toRotationMatrix(), p_);
+      normal = pose_block(normal_calib);
+    } else {
+      normal = accumulate(R_.toRotationMatrix(), p_);
+    }
     if (normal.count < 6) return false;
-    Eigen::VectorXd d_full(num_states);
+    Eigen::VectorXd d_full = Eigen::VectorXd::Zero(num_states);
     d_full.head<18>() = d;
     for (size_t k = 0; k < num_lidars; ++k) {
       const int base = 18 + static_cast<int>(k) * calibration_block_;
@@ -751,9 +787,19 @@ LioFrameResult LioOdometry::ProcessFrame(const std::vector<LidarScanInput>& scan
       }
       if (options_.estimate_time_offset) d_full(base + calibration_block_ - 1) = dt_d[k];
     }
+    if (gyro_scale_index_ >= 0) {
+      const Mat3 dE = gyro_scale_ - gyro_scale_pred;
+      d_full.segment<9>(18 + gyro_scale_index_) =
+          Eigen::Map<const Eigen::Matrix<double, 9, 1>>(dE.data());
+    }
     Eigen::MatrixXd A = P_inv_full;
     Eigen::VectorXd b = -P_inv_full * d_full;
-    add_calibrated_information(normal_calib, &A, &b);
+    if (calibrate) {
+      add_calibrated_information(normal_calib, &A, &b);
+    } else {
+      A.topLeftCorner<6, 6>() += normal.HtH * inv_var;
+      b.head<6>() -= normal.Htz * inv_var;
+    }
     const Eigen::VectorXd step = A.ldlt().solve(b);
     *delta = step.head<18>();
     *delta_calib = step.tail(num_states - 18);
@@ -784,6 +830,9 @@ LioFrameResult LioOdometry::ProcessFrame(const std::vector<LidarScanInput>& scan
         t_e[k] += delta_calib.segment<3>(base + 3);
       }
       if (options_.estimate_time_offset) dt_d[k] += delta_calib(base + calibration_block_ - 1);
+    }
+    if (gyro_scale_index_ >= 0) {
+      gyro_scale_ += Eigen::Map<const Mat3>(delta_calib.segment<9>(gyro_scale_index_).data());
     }
     const bool small = delta.segment<3>(kTheta).norm() < options_.convergence_rotation &&
                        delta.segment<3>(kPos).norm() < options_.convergence_translation;
@@ -818,6 +867,7 @@ LioFrameResult LioOdometry::ProcessFrame(const std::vector<LidarScanInput>& scan
     bg_ = bg_pred;
     ba_ = ba_pred;
     g_ = g_pred;
+    gyro_scale_ = gyro_scale_pred;
     result.message = "no valid point-to-plane matches: IMU prediction only";
     result.degeneracy.num_weak = 6;
     const SE3 pose(R_, p_);
@@ -827,17 +877,22 @@ LioFrameResult LioOdometry::ProcessFrame(const std::vector<LidarScanInput>& scan
     return result;
   }
   // Posterior covariance at the final linearisation.
-  if (!calibrate) {
+  if (!extra_states) {
     normal = accumulate(R_.toRotationMatrix(), p_);
     Mat18 A = P_inv;
     A.topLeftCorner<6, 6>() += normal.HtH * inv_var;
     P_ = A.ldlt().solve(Mat18::Identity());
     P_ = 0.5 * (P_ + P_.transpose()).eval();
   } else {
-    normal_calib = accumulate_calibrated(R_.toRotationMatrix(), p_);
-    normal = pose_block(normal_calib);
     Eigen::MatrixXd A = P_inv_full;
-    add_calibrated_information(normal_calib, &A, nullptr);
+    if (calibrate) {
+      normal_calib = accumulate_calibrated(R_.toRotationMatrix(), p_);
+      normal = pose_block(normal_calib);
+      add_calibrated_information(normal_calib, &A, nullptr);
+    } else {
+      normal = accumulate(R_.toRotationMatrix(), p_);
+      A.topLeftCorner<6, 6>() += normal.HtH * inv_var;
+    }
     Eigen::MatrixXd P_full = A.ldlt().solve(Eigen::MatrixXd::Identity(num_states, num_states));
     P_full = 0.5 * (P_full + P_full.transpose()).eval();
     P_ = P_full.topLeftCorner<18, 18>();

@@ -29,8 +29,17 @@
 // the lever-arm accelerations the IMU feels when the rig turns (a LiDAR-only
 // fit moves the position instead), so it converges slowly at the inflated IMU
 // noise, and the map built before convergence keeps the initial error
-// (docs/BENCHMARKS.md). Off (the default), the filter is the 18-state one
-// above, bit for bit.
+// (docs/BENCHMARKS.md).
+//
+// Gyroscope intrinsics (option estimate_gyro_scale, on by default): the rate
+// model is measured = (I + E) true + bias, E the 3x3 scale-factor and
+// cross-axis error matrix, so the propagation uses w = gyro - bg - E·gyro (to
+// first order in E) and vec(E) (column-major) is a constant block of 9 states
+// after the LiDAR calibration ones, with the transition coupling
+// d dθ / d vec(E) = -J_r(w dt) dt [gyro_x I, gyro_y I, gyro_z I]. The LiDAR
+// sees E only through the attitude it corrects after turns (no measurement
+// columns); it shares the calibrated update above. With every estimation off
+// the filter is the 18-state one above, bit for bit.
 //
 // Threading: AddImu/ProcessFrame are called from one thread; ProcessFrame uses
 // TBB internally for de-skew and residuals. Results are bit-identical run to
@@ -98,6 +107,17 @@ struct LioOptions {
   double extrinsic_rotation_std_deg = 0.5;  // deg
   double extrinsic_translation_std = 0.01;  // m
   double time_offset_std_ms = 5.0;          // ms
+  // Online gyroscope intrinsics: the error matrix E of the rates, measured =
+  // (I + E) true + bias (per-axis scale on the diagonal, cross-axis
+  // sensitivity off it), as 9 constant states with the prior 1-sigma
+  // gyro_scale_std per entry (Bosch BMI085 datasheet: sensitivity tolerance
+  // and cross-axis sensitivity 1 % typ). Unmodelled, E tilts the attitude by
+  // |E| x the turn angle on every turn (1-4 deg over a 180 deg turn at 1-2 %),
+  // which the LiDAR must correct; where it constrains the attitude weakly
+  // (narrow stairwells) the tilt leaks gravity into the velocity and the
+  // filter diverges (docs/notes/lio_stairwell.md).
+  bool estimate_gyro_scale = true;
+  double gyro_scale_std = 0.01;  // fraction, 1-sigma per entry of E
   bool Check() const;
 };
 
@@ -175,6 +195,8 @@ class LioOdometry {
   const Eigen::Matrix<double, 18, 18>& covariance() const { return P_; }
   const Vec3& gyro_bias() const { return bg_; }
   const Vec3& accel_bias() const { return ba_; }
+  // The gyroscope error matrix E (zero unless estimate_gyro_scale).
+  const Mat3& gyro_scale_error() const { return gyro_scale_; }
   // Per LiDAR given to the constructor (estimated or not).
   std::vector<LidarCalibrationEstimate> LidarCalibration() const;
   // ns by which the estimated time offsets move points later than the given
@@ -206,6 +228,10 @@ class LioOdometry {
   std::vector<double> time_offset_change_s_;
   Eigen::MatrixXd P_core_calib_;
   Eigen::MatrixXd P_calib_;
+  // With estimate_gyro_scale, E's 9 states (column-major vec(E)) follow the
+  // LiDAR calibration states: index into the calibration blocks above, or -1.
+  int gyro_scale_index_ = -1;
+  Mat3 gyro_scale_ = Mat3::Zero();
   std::deque<ImuSample> imu_buffer_;   // samples not yet consumed by propagation
   std::vector<ImuSample> init_samples_;
   ImuSample last_imu_;                 // last sample consumed (for mid-point integration)
