@@ -193,10 +193,64 @@ struct BaSpec {
   std::vector<PositionPrior> position_priors;
   std::vector<RotationPrior> rotation_priors;
   std::vector<LidarTerm> lidar_terms;
+  // X = rig_from_prior (refine_prior_frame): the prior and LiDAR terms go
+  // through X; its rotation / translation are refined where *_free.
+  bool prior_frame = false;
+  bool prior_frame_rotation_free = false;
+  bool prior_frame_translation_free = false;
   bool first_frame_fixed = false;  // gauge: first frame held
   frame_t scale_frame = 0;         // gauge: this frame's translation
   int scale_coordinate = -1;       //   coordinate held (-1: none)
 };
+
+// The guard of X (bundle_adjustment.h): predicted standard deviations of
+// X's rotation (rad) and translation (m), largest axis of each block of H^-1,
+// H = sum J^T J over the LiDAR terms with the frame poses held up to a common
+// scale s of their translations (the one freedom of the images' relative
+// poses: it trades off against X's translation along the baselines), J =
+// d r / d [dtheta_X (EigenQuaternionManifold); dt_X; s]. +inf when H is
+// singular.
+void PriorFrameSigmas(const std::vector<LidarTerm>& lidar_terms,
+                      const MapperState& state,
+                      double* rotation_sigma,
+                      double* translation_sigma) {
+  using Mat7 = Eigen::Matrix<double, 7, 7>;
+  *rotation_sigma = std::numeric_limits<double>::infinity();
+  *translation_sigma = std::numeric_limits<double>::infinity();
+  const PoseBlock x(state.rig_from_prior);
+  Eigen::Matrix<double, 4, 3, Eigen::RowMajor> plus_jacobian;
+  ceres::EigenQuaternionManifold().PlusJacobian(x.q.data(), plus_jacobian.data());
+  Mat7 H = Mat7::Zero();
+  for (const LidarTerm& term : lidar_terms) {
+    const PoseBlock b1(state.frames.at(term.frame_id1).rig_from_world);
+    const PoseBlock b2(state.frames.at(term.frame_id2).rig_from_world);
+    const std::unique_ptr<ceres::CostFunction> cost(
+        PriorFrameRelativePoseFunctor::Create(term.rig1_from_rig2, term.sqrt_information));
+    const double* params[] = {
+        b1.q.data(), b1.t.data(), b2.q.data(), b2.t.data(), x.q.data(), x.t.data()};
+    Eigen::Matrix<double, 6, 3, Eigen::RowMajor> d_t1, d_t2, d_tx;
+    Eigen::Matrix<double, 6, 4, Eigen::RowMajor> d_qx;
+    double* jacobians[] = {nullptr, d_t1.data(), nullptr, d_t2.data(), d_qx.data(), d_tx.data()};
+    Vec6 residual;
+    if (!cost->Evaluate(params, residual.data(), jacobians)) continue;
+    Eigen::Matrix<double, 6, 7> J;
+    J.leftCols<3>() = d_qx * plus_jacobian;
+    J.middleCols<3>(3) = d_tx;
+    // (rig_from_world translations) * (1 + s): d r / d s at s = 0.
+    J.col(6) =
+        d_t1 * Eigen::Map<const Vec3>(b1.t.data()) + d_t2 * Eigen::Map<const Vec3>(b2.t.data());
+    H += J.transpose() * J;
+  }
+  const Eigen::SelfAdjointEigenSolver<Mat7> eigen(H);
+  const Eigen::Matrix<double, 7, 1> values = eigen.eigenvalues();
+  if (!(values(0) > 1e-12 * std::max(1.0, values(6)))) return;
+  const Mat7 covariance =
+      eigen.eigenvectors() * values.cwiseInverse().asDiagonal() * eigen.eigenvectors().transpose();
+  const Eigen::SelfAdjointEigenSolver<Mat3> rotation(covariance.topLeftCorner<3, 3>());
+  const Eigen::SelfAdjointEigenSolver<Mat3> translation(covariance.block<3, 3>(3, 3));
+  *rotation_sigma = std::sqrt(std::max(0.0, rotation.eigenvalues()(2)));
+  *translation_sigma = std::sqrt(std::max(0.0, translation.eigenvalues()(2)));
+}
 
 int NumThreads(const BundleAdjustmentOptions& options) {
   return options.num_threads > 0
@@ -215,6 +269,7 @@ void SolveWithCeres(const BundleAdjustmentOptions& options,
   }
   const bool refine_rig = state->has_rig && options.refine_cam_from_rig;
   const camera_t reference_camera = *spec.camera_set->begin();
+  PoseBlock prior_frame_block(state->rig_from_prior);
   std::map<camera_t, PoseBlock> rig_blocks;
   if (refine_rig) {
     for (camera_t camera_id : *spec.camera_set) {
@@ -268,23 +323,66 @@ void SolveWithCeres(const BundleAdjustmentOptions& options,
       problem.SetManifold(camera.params.data(), owned_manifolds.back().get());
     }
   }
+  double* x_q = prior_frame_block.q.data();
+  double* x_t = prior_frame_block.t.data();
   for (const PositionPrior& prior : spec.position_priors) {
     PoseBlock& block = frame_blocks.at(prior.frame_id);
-    problem.AddResidualBlock(
-        PositionPriorFunctor::Create(prior.position, prior.sqrt_information), nullptr,
-        block.q.data(), block.t.data());
+    if (spec.prior_frame) {
+      problem.AddResidualBlock(
+          PriorFramePositionPriorFunctor::Create(prior.position, prior.sqrt_information),
+          nullptr,
+          block.q.data(),
+          block.t.data(),
+          x_t);
+    } else {
+      problem.AddResidualBlock(PositionPriorFunctor::Create(prior.position, prior.sqrt_information),
+                               nullptr,
+                               block.q.data(),
+                               block.t.data());
+    }
   }
   for (const RotationPrior& prior : spec.rotation_priors) {
     PoseBlock& block = frame_blocks.at(prior.frame_id);
-    problem.AddResidualBlock(RotationPriorFunctor::Create(prior.rig_from_world, prior.sigma),
-                             nullptr, block.q.data());
+    if (spec.prior_frame) {
+      problem.AddResidualBlock(
+          PriorFrameRotationPriorFunctor::Create(prior.rig_from_world, prior.sigma),
+          nullptr,
+          block.q.data(),
+          x_q);
+    } else {
+      problem.AddResidualBlock(
+          RotationPriorFunctor::Create(prior.rig_from_world, prior.sigma), nullptr, block.q.data());
+    }
   }
   for (const LidarTerm& term : spec.lidar_terms) {
     PoseBlock& b1 = frame_blocks.at(term.frame_id1);
     PoseBlock& b2 = frame_blocks.at(term.frame_id2);
-    problem.AddResidualBlock(
-        RelativePoseFunctor::Create(term.rig1_from_rig2, term.sqrt_information), nullptr,
-        b1.q.data(), b1.t.data(), b2.q.data(), b2.t.data());
+    if (spec.prior_frame) {
+      problem.AddResidualBlock(
+          PriorFrameRelativePoseFunctor::Create(term.rig1_from_rig2, term.sqrt_information),
+          nullptr,
+          b1.q.data(),
+          b1.t.data(),
+          b2.q.data(),
+          b2.t.data(),
+          x_q,
+          x_t);
+    } else {
+      problem.AddResidualBlock(
+          RelativePoseFunctor::Create(term.rig1_from_rig2, term.sqrt_information),
+          nullptr,
+          b1.q.data(),
+          b1.t.data(),
+          b2.q.data(),
+          b2.t.data());
+    }
+  }
+  if (problem.HasParameterBlock(x_q)) {
+    problem.SetManifold(x_q, &quaternion_manifold);
+    if (!spec.prior_frame_rotation_free) problem.SetParameterBlockConstant(x_q);
+  }
+  if (problem.HasParameterBlock(x_t) && !spec.prior_frame_translation_free) {
+    problem.SetParameterBlockConstant(x_t);
   }
   // Gauge.
   if (!options.refine_frame_poses) {
@@ -361,6 +459,7 @@ void SolveWithCeres(const BundleAdjustmentOptions& options,
   for (const auto& [camera_id, block] : rig_blocks) {
     state->cam_from_rig[camera_id] = block.ToSE3();
   }
+  if (spec.prior_frame) state->rig_from_prior = prior_frame_block.ToSE3();
 }
 
 // The same problem through SolveSchurBundleAdjustment (schur_bundle_adjuster.h).
@@ -434,20 +533,38 @@ void SolveWithSchur(const BundleAdjustmentOptions& options,
     problem.observations.push_back(o);
   }
   std::vector<std::unique_ptr<ceres::CostFunction>> costs;
+  const bool x = spec.prior_frame;
   for (const PositionPrior& prior : spec.position_priors) {
-    costs.emplace_back(PositionPriorFunctor::Create(prior.position, prior.sqrt_information));
+    costs.emplace_back(
+        x ? PriorFramePositionPriorFunctor::Create(prior.position, prior.sqrt_information)
+          : PositionPriorFunctor::Create(prior.position, prior.sqrt_information));
     problem.pose_terms.push_back(
-        {SchurBaPoseTerm::kPose, costs.back().get(), frame_index.at(prior.frame_id), -1});
+        {SchurBaPoseTerm::kPose, costs.back().get(), frame_index.at(prior.frame_id), -1, x});
   }
   for (const RotationPrior& prior : spec.rotation_priors) {
-    costs.emplace_back(RotationPriorFunctor::Create(prior.rig_from_world, prior.sigma));
+    costs.emplace_back(x ? PriorFrameRotationPriorFunctor::Create(prior.rig_from_world, prior.sigma)
+                         : RotationPriorFunctor::Create(prior.rig_from_world, prior.sigma));
     problem.pose_terms.push_back(
-        {SchurBaPoseTerm::kRotation, costs.back().get(), frame_index.at(prior.frame_id), -1});
+        {SchurBaPoseTerm::kRotation, costs.back().get(), frame_index.at(prior.frame_id), -1, x});
   }
   for (const LidarTerm& term : spec.lidar_terms) {
-    costs.emplace_back(RelativePoseFunctor::Create(term.rig1_from_rig2, term.sqrt_information));
-    problem.pose_terms.push_back({SchurBaPoseTerm::kRelative, costs.back().get(),
-                                  frame_index.at(term.frame_id1), frame_index.at(term.frame_id2)});
+    costs.emplace_back(
+        x ? PriorFrameRelativePoseFunctor::Create(term.rig1_from_rig2, term.sqrt_information)
+          : RelativePoseFunctor::Create(term.rig1_from_rig2, term.sqrt_information));
+    problem.pose_terms.push_back({SchurBaPoseTerm::kRelative,
+                                  costs.back().get(),
+                                  frame_index.at(term.frame_id1),
+                                  frame_index.at(term.frame_id2),
+                                  x});
+  }
+  if (x) {
+    problem.has_rig_from_prior = true;
+    problem.rig_from_prior_rotation = state->rig_from_prior.rotation();
+    problem.rig_from_prior_translation = state->rig_from_prior.translation();
+    for (int k = 0; k < 3; ++k) {
+      problem.rig_from_prior_fixed[k] = !spec.prior_frame_rotation_free;
+      problem.rig_from_prior_fixed[3 + k] = !spec.prior_frame_translation_free;
+    }
   }
   SchurBaOptions schur_options;
   schur_options.loss_type = options.loss_type;
@@ -482,6 +599,10 @@ void SolveWithSchur(const BundleAdjustmentOptions& options,
   }
   for (size_t p = 0; p < track_of_point.size(); ++p) {
     state->tracks[track_of_point[p]].xyz = problem.points[p];
+  }
+  if (x) {
+    state->rig_from_prior =
+        SE3(problem.rig_from_prior_rotation.normalized(), problem.rig_from_prior_translation);
   }
 }
 
@@ -519,6 +640,8 @@ bool BundleAdjustmentOptions::Check() const {
   CHECK_OPTION_GE(gradient_tolerance, 0.0);
   CHECK_OPTION_GE(parameter_tolerance, 0.0);
   CHECK_OPTION_GE(max_tracks_per_image, 0);
+  CHECK_OPTION_GE(prior_frame_max_rotation_sigma_deg, 0.0);
+  CHECK_OPTION_GE(prior_frame_max_translation_sigma_m, 0.0);
   CHECK_OPTION_GE(dense_schur_max_frames, 0);
   CHECK_OPTION_MSG(solver, solver == "auto" || solver == "ceres" || solver == "schur",
                    "one of auto, ceres, schur");
@@ -709,6 +832,39 @@ BundleAdjustmentStats RunBundleAdjustment(
     }
   }
 
+  // Prior frame X: which parts the data determine (guard, header comment).
+  if (options.refine_prior_frame &&
+      !(position_priors.empty() && rotation_priors.empty() && lidar_terms.empty())) {
+    spec.prior_frame = true;
+    stats.prior_frame_used = true;
+    if (!options.refine_frame_poses) {
+      stats.prior_frame_note = "held: frame poses constant";
+    } else if (lidar_terms.empty()) {
+      stats.prior_frame_note = "held: no LiDAR terms";
+    } else {
+      double rotation_sigma = 0.0;
+      double translation_sigma = 0.0;
+      PriorFrameSigmas(lidar_terms, *state, &rotation_sigma, &translation_sigma);
+      stats.prior_frame_rotation_sigma_deg = rotation_sigma * 180.0 / M_PI;
+      stats.prior_frame_translation_sigma_m = translation_sigma;
+      spec.prior_frame_rotation_free =
+          stats.prior_frame_rotation_sigma_deg <= options.prior_frame_max_rotation_sigma_deg;
+      spec.prior_frame_translation_free =
+          translation_sigma <= options.prior_frame_max_translation_sigma_m;
+      stats.prior_frame_note = fmt::format(
+          "rotation {} (predicted sigma {:.4f} deg, limit {:.4f}), translation {} "
+          "(predicted sigma {:.2f} mm, limit {:.2f})",
+          spec.prior_frame_rotation_free ? "refined" : "held",
+          stats.prior_frame_rotation_sigma_deg,
+          options.prior_frame_max_rotation_sigma_deg,
+          spec.prior_frame_translation_free ? "refined" : "held",
+          translation_sigma * 1e3,
+          options.prior_frame_max_translation_sigma_m * 1e3);
+    }
+    stats.prior_frame_rotation_refined = spec.prior_frame_rotation_free;
+    stats.prior_frame_translation_refined = spec.prior_frame_translation_free;
+  }
+
   const bool refine_rig = state->has_rig && options.refine_cam_from_rig;
   spec.observations = &observations;
   spec.track_set = &track_set;
@@ -726,6 +882,21 @@ BundleAdjustmentStats RunBundleAdjustment(
     SolveWithCeres(options, spec, start, state, &stats);
   }
   stats.final_mean_reprojection_error_px = UpdateTrackErrors(track_set, state);
+  stats.rig_from_prior = state->rig_from_prior;
+  if (stats.prior_frame_used) {
+    const Vec3 omega_deg = so3::Log(state->rig_from_prior.rotation()) * 180.0 / M_PI;
+    const Vec3 t_mm = state->rig_from_prior.translation() * 1e3;
+    LogInfo(
+        "bundle adjustment: prior frame rig_from_prior: {}; now rotation [{:.4f}, {:.4f}, "
+        "{:.4f}] deg (rig axes), translation [{:.2f}, {:.2f}, {:.2f}] mm",
+        stats.prior_frame_note,
+        omega_deg.x(),
+        omega_deg.y(),
+        omega_deg.z(),
+        t_mm.x(),
+        t_mm.y(),
+        t_mm.z());
+  }
   stats.seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start)
           .count();
