@@ -204,50 +204,100 @@ struct BaSpec {
 };
 
 // The guard of X (bundle_adjustment.h): predicted standard deviations of
-// X's rotation (rad) and translation (m), largest axis of each block of H^-1,
-// H = sum J^T J over the LiDAR terms with the frame poses held up to a common
-// scale s of their translations (the one freedom of the images' relative
-// poses: it trades off against X's translation along the baselines), J =
-// d r / d [dtheta_X (EigenQuaternionManifold); dt_X; s]. +inf when H is
-// singular.
-void PriorFrameSigmas(const std::vector<LidarTerm>& lidar_terms,
+// X's rotation (rad) and translation (m), largest axis of each block of the
+// marginal covariance of X in a linear model of the pose terms (LiDAR terms
+// and priors) at the current values, whose unknowns are X (tangent [dtheta
+// (EigenQuaternionManifold); dt]) and the similarity that the images leave
+// free: world_from_rig -> S * world_from_rig with S = (1 + s) Exp(omega) x +
+// w. J = d r / d [dtheta, dt, s, omega, w] by central differences (steps
+// 1e-6 rad / m / unitless); H = J^T J; X's marginal information is the Schur
+// complement H_xx - H_xg H_gg^+ H_gx (pseudo-inverse: a similarity direction
+// no term sees is a gauge that does not touch X). +inf when that is singular.
+void PriorFrameSigmas(const BaSpec& spec,
                       const MapperState& state,
                       double* rotation_sigma,
                       double* translation_sigma) {
-  using Mat7 = Eigen::Matrix<double, 7, 7>;
+  constexpr int kNumUnknowns = 13;
+  using VecZ = Eigen::Matrix<double, kNumUnknowns, 1>;
+  using MatZ = Eigen::Matrix<double, kNumUnknowns, kNumUnknowns>;
   *rotation_sigma = std::numeric_limits<double>::infinity();
   *translation_sigma = std::numeric_limits<double>::infinity();
-  const PoseBlock x(state.rig_from_prior);
-  Eigen::Matrix<double, 4, 3, Eigen::RowMajor> plus_jacobian;
-  ceres::EigenQuaternionManifold().PlusJacobian(x.q.data(), plus_jacobian.data());
-  Mat7 H = Mat7::Zero();
-  for (const LidarTerm& term : lidar_terms) {
-    const PoseBlock b1(state.frames.at(term.frame_id1).rig_from_world);
-    const PoseBlock b2(state.frames.at(term.frame_id2).rig_from_world);
-    const std::unique_ptr<ceres::CostFunction> cost(
-        PriorFrameRelativePoseFunctor::Create(term.rig1_from_rig2, term.sqrt_information));
-    const double* params[] = {
-        b1.q.data(), b1.t.data(), b2.q.data(), b2.t.data(), x.q.data(), x.t.data()};
-    Eigen::Matrix<double, 6, 3, Eigen::RowMajor> d_t1, d_t2, d_tx;
-    Eigen::Matrix<double, 6, 4, Eigen::RowMajor> d_qx;
-    double* jacobians[] = {nullptr, d_t1.data(), nullptr, d_t2.data(), d_qx.data(), d_tx.data()};
-    Vec6 residual;
-    if (!cost->Evaluate(params, residual.data(), jacobians)) continue;
-    Eigen::Matrix<double, 6, 7> J;
-    J.leftCols<3>() = d_qx * plus_jacobian;
-    J.middleCols<3>(3) = d_tx;
-    // (rig_from_world translations) * (1 + s): d r / d s at s = 0.
-    J.col(6) =
-        d_t1 * Eigen::Map<const Vec3>(b1.t.data()) + d_t2 * Eigen::Map<const Vec3>(b2.t.data());
-    H += J.transpose() * J;
+  // Every pose term's whitened residual at the perturbation z.
+  const auto residuals = [&](const VecZ& z) {
+    const SE3 x(so3::Exp(Vec3(z.segment<3>(0))) * state.rig_from_prior.rotation(),
+                state.rig_from_prior.translation() + z.segment<3>(3));
+    const Quat world_rotation = so3::Exp(Vec3(z.segment<3>(7)));
+    const auto pose = [&](frame_t frame_id) {
+      const SE3 world_from_rig = state.frames.at(frame_id).rig_from_world.Inverse();
+      return PoseBlock(SE3(world_rotation * world_from_rig.rotation(),
+                           (1.0 + z(6)) * (world_rotation * world_from_rig.translation()) +
+                               z.segment<3>(10))
+                           .Inverse());
+    };
+    const PoseBlock xb(x);
+    std::vector<double> r;
+    const auto evaluate = [&](const ceres::CostFunction& cost, const double* const* params) {
+      std::vector<double> out(cost.num_residuals());
+      if (cost.Evaluate(params, out.data(), nullptr)) r.insert(r.end(), out.begin(), out.end());
+    };
+    for (const PositionPrior& prior : spec.position_priors) {
+      const PoseBlock b = pose(prior.frame_id);
+      const std::unique_ptr<ceres::CostFunction> cost(
+          PriorFramePositionPriorFunctor::Create(prior.position, prior.sqrt_information));
+      const double* params[] = {b.q.data(), b.t.data(), xb.t.data()};
+      evaluate(*cost, params);
+    }
+    for (const RotationPrior& prior : spec.rotation_priors) {
+      const PoseBlock b = pose(prior.frame_id);
+      const std::unique_ptr<ceres::CostFunction> cost(
+          PriorFrameRotationPriorFunctor::Create(prior.rig_from_world, prior.sigma));
+      const double* params[] = {b.q.data(), xb.q.data()};
+      evaluate(*cost, params);
+    }
+    for (const LidarTerm& term : spec.lidar_terms) {
+      const PoseBlock b1 = pose(term.frame_id1);
+      const PoseBlock b2 = pose(term.frame_id2);
+      const std::unique_ptr<ceres::CostFunction> cost(
+          PriorFrameRelativePoseFunctor::Create(term.rig1_from_rig2, term.sqrt_information));
+      const double* params[] = {
+          b1.q.data(), b1.t.data(), b2.q.data(), b2.t.data(), xb.q.data(), xb.t.data()};
+      evaluate(*cost, params);
+    }
+    return Eigen::VectorXd(Eigen::Map<const Eigen::VectorXd>(r.data(), r.size()));
+  };
+  const size_t num_residuals = static_cast<size_t>(residuals(VecZ::Zero()).size());
+  constexpr double kStep = 1e-6;
+  Eigen::MatrixXd J(num_residuals, kNumUnknowns);
+  for (int k = 0; k < kNumUnknowns; ++k) {
+    const VecZ step = VecZ::Unit(k) * kStep;
+    const Eigen::VectorXd plus = residuals(step);
+    const Eigen::VectorXd minus = residuals(-step);
+    if (static_cast<size_t>(plus.size()) != num_residuals ||
+        static_cast<size_t>(minus.size()) != num_residuals) {
+      return;
+    }
+    J.col(k) = (plus - minus) / (2.0 * kStep);
   }
-  const Eigen::SelfAdjointEigenSolver<Mat7> eigen(H);
-  const Eigen::Matrix<double, 7, 1> values = eigen.eigenvalues();
-  if (!(values(0) > 1e-12 * std::max(1.0, values(6)))) return;
-  const Mat7 covariance =
-      eigen.eigenvectors() * values.cwiseInverse().asDiagonal() * eigen.eigenvectors().transpose();
+  const MatZ H = J.transpose() * J;
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, 7, 7>> gauge(
+      H.bottomRightCorner<7, 7>());
+  const Eigen::Matrix<double, 7, 1> values = gauge.eigenvalues();
+  Eigen::Matrix<double, 7, 1> inverse_values = Eigen::Matrix<double, 7, 1>::Zero();
+  for (int i = 0; i < 7; ++i) {
+    if (values(i) > 1e-12 * std::max(1.0, values(6))) inverse_values(i) = 1.0 / values(i);
+  }
+  const Eigen::Matrix<double, 7, 7> gauge_pinv =
+      gauge.eigenvectors() * inverse_values.asDiagonal() * gauge.eigenvectors().transpose();
+  const Eigen::Matrix<double, 6, 7> H_xg = H.topRightCorner<6, 7>();
+  Mat6 information = H.topLeftCorner<6, 6>() - H_xg * gauge_pinv * H_xg.transpose();
+  information = 0.5 * (information + information.transpose()).eval();
+  const Eigen::SelfAdjointEigenSolver<Mat6> eigen(information);
+  const Vec6 x_values = eigen.eigenvalues();
+  if (!(x_values(0) > 1e-12 * std::max(1.0, x_values(5)))) return;
+  const Mat6 covariance = eigen.eigenvectors() * x_values.cwiseInverse().asDiagonal() *
+                          eigen.eigenvectors().transpose();
   const Eigen::SelfAdjointEigenSolver<Mat3> rotation(covariance.topLeftCorner<3, 3>());
-  const Eigen::SelfAdjointEigenSolver<Mat3> translation(covariance.block<3, 3>(3, 3));
+  const Eigen::SelfAdjointEigenSolver<Mat3> translation(covariance.bottomRightCorner<3, 3>());
   *rotation_sigma = std::sqrt(std::max(0.0, rotation.eigenvalues()(2)));
   *translation_sigma = std::sqrt(std::max(0.0, translation.eigenvalues()(2)));
 }
@@ -844,7 +894,7 @@ BundleAdjustmentStats RunBundleAdjustment(
     } else {
       double rotation_sigma = 0.0;
       double translation_sigma = 0.0;
-      PriorFrameSigmas(lidar_terms, *state, &rotation_sigma, &translation_sigma);
+      PriorFrameSigmas(spec, *state, &rotation_sigma, &translation_sigma);
       stats.prior_frame_rotation_sigma_deg = rotation_sigma * 180.0 / M_PI;
       stats.prior_frame_translation_sigma_m = translation_sigma;
       spec.prior_frame_rotation_free =

@@ -37,14 +37,13 @@
 //   X is a hand-eye calibration: a rotation of X shows only through relative
 //   motions that turn about other axes than its own (X^-1 T X = T for T about
 //   X's axis) or translate across it, and its translation only through
-//   relative rotations, (I - R_ij) t_X. Guard: the information of X from the
-//   LiDAR terms with the frame poses held up to a common scale of their
-//   translations (the images fix relative poses up to scale), H = sum J^T J
-//   over [X; scale] (7x7, whitened, at the initial values), predicts X's
-//   standard deviations as the square roots of the largest eigenvalues of the
-//   rotation / translation blocks of H^-1;
-//   rotation and translation of X are each refined only when the largest one
-//   is below prior_frame_max_rotation_sigma_deg / _translation_sigma_m (and
+//   relative rotations, (I - R_ij) t_X. Guard: a linear model of the prior
+//   and LiDAR terms at the initial values whose unknowns are X and the
+//   similarity of the world that the images leave free (scale, rotation,
+//   translation: the images fix the relative rig poses up to it) predicts X's
+//   marginal standard deviations (largest axis of the rotation / translation
+//   blocks); rotation and translation of X are each refined only when that is
+//   below prior_frame_max_rotation_sigma_deg / _translation_sigma_m (and
 //   never without LiDAR terms); otherwise that part is held at its value.
 // Gauge (seven degrees of freedom of a similarity; fixed explicitly):
 //  - absolute pose: given by the priors when >= 3 registered frames have a
@@ -88,8 +87,9 @@ struct BundleAdjustmentOptions {
   // constraints and the rig frame (header comment; needs LiDAR terms).
   bool refine_prior_frame = false;
   // Guard: refine X's rotation only when its predicted standard deviation
-  // (largest axis, from the LiDAR terms) is below this (deg) ...
-  double prior_frame_max_rotation_sigma_deg = 0.02;
+  // (largest axis) is below this (deg): half the 0.1 deg camera target, well
+  // below a LiDAR extrinsic calibration's typical 0.1-0.5 deg error ...
+  double prior_frame_max_rotation_sigma_deg = 0.05;
   // ... and its translation only when that is below this (m).
   double prior_frame_max_translation_sigma_m = 0.002;
   std::string loss_type = "cauchy";   // trivial | huber | cauchy (reprojection)
