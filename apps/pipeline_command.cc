@@ -429,8 +429,9 @@ json PoseJson(const SE3& pose) {
 json PriorFrameReport(const json& mapper_summary,
                       const std::string& believed_rig_path,
                       const std::string& truth_rig_path) {
-  const json* best = nullptr;
-  for (const json& c : mapper_summary.value("components", json::array())) {
+  if (!mapper_summary.contains("components")) return json();
+  const json* best = nullptr;  // points into mapper_summary
+  for (const json& c : mapper_summary["components"]) {
     if (!c.contains("rig_from_prior") || !c.contains("model")) continue;
     if (best == nullptr ||
         c["model"].value("registered_images", 0) > (*best)["model"].value("registered_images", 0)) {
