@@ -1399,6 +1399,20 @@ void AddBundleAdjustmentOptions(
   options->AddBool("BundleAdjustment.use_lidar_constraints",
                    &ba->use_lidar_constraints,
                    "LiDAR relative pose residuals");
+  options->AddBool("BundleAdjustment.refine_prior_frame",
+                   &ba->refine_prior_frame,
+                   "refine one rigid transform rig_from_prior between the frame of the pose "
+                   "priors / LiDAR constraints (lio's IMU frame) and the rig frame: absorbs the "
+                   "LiDAR extrinsic calibration error (hand-eye; needs LiDAR constraints)");
+  options->AddDouble("BundleAdjustment.prior_frame_max_rotation_sigma_deg",
+                     &ba->prior_frame_max_rotation_sigma_deg,
+                     "deg; refine_prior_frame refines the rotation only when the LiDAR "
+                     "constraints predict its standard deviation (largest axis) below this",
+                     R::AtLeast(0));
+  options->AddDouble("BundleAdjustment.prior_frame_max_translation_sigma_m",
+                     &ba->prior_frame_max_translation_sigma_m,
+                     "m; the same limit for the translation of rig_from_prior",
+                     R::AtLeast(0));
   options->AddChoice("BundleAdjustment.loss_type",
                      &ba->loss_type,
                      {"trivial", "huber", "cauchy"},

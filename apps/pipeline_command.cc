@@ -409,6 +409,62 @@ json RigErrors(const std::string& model_path, const Rig& believed, const Rig& tr
   return cameras;
 }
 
+json PoseJson(const SE3& pose) {
+  const Vec3 omega_deg = so3::Log(pose.rotation()) * 180.0 / M_PI;
+  const Vec3 t_mm = pose.translation() * 1e3;
+  return {{"rotation_deg", omega_deg.norm()},
+          {"rotation_vector_deg", {omega_deg.x(), omega_deg.y(), omega_deg.z()}},
+          {"translation_mm", {t_mm.x(), t_mm.y(), t_mm.z()}}};
+}
+
+// global_mapper's X = rig_from_prior (BundleAdjustment.refine_prior_frame) of
+// the largest component, and, given the truth, the value it should take. lio
+// registers scans with the believed imu_from_lidar, so its "IMU" frame (the
+// priors' and LiDAR constraints' frame) is world_from_lidar * lidar_from_imu
+// (believed) = world_from_imu * E_L with the LiDAR calibration error E_L =
+// imu_from_lidar (true) * imu_from_lidar (believed)^-1; the rig frame is the
+// IMU frame as seen through cam0's believed extrinsics (cam0 is the fixed
+// reference), rig_from_imu = E_C = cam0_from_imu (believed)^-1 * cam0_from_imu
+// (true). Hence X should be E_C * E_L (vectors in the IMU axes).
+json PriorFrameReport(const json& mapper_summary,
+                      const std::string& believed_rig_path,
+                      const std::string& truth_rig_path) {
+  if (!mapper_summary.contains("components")) return json();
+  const json* best = nullptr;  // points into mapper_summary
+  for (const json& c : mapper_summary["components"]) {
+    if (!c.contains("rig_from_prior") || !c.contains("model")) continue;
+    if (best == nullptr ||
+        c["model"].value("registered_images", 0) > (*best)["model"].value("registered_images", 0)) {
+      best = &c;
+    }
+  }
+  if (best == nullptr) return json();
+  json j = {{"estimated", (*best)["rig_from_prior"]}};
+  if (!FileExists(truth_rig_path) || !FileExists(believed_rig_path)) return j;
+  const Rig believed = ReadRigYaml(believed_rig_path);
+  const Rig truth = ReadRigYaml(truth_rig_path);
+  if (believed.cameras.empty() || truth.cameras.empty() || believed.lidars.empty() ||
+      truth.lidars.empty()) {
+    return j;
+  }
+  const SE3 lidar_error =
+      truth.lidars[0].imu_from_lidar * believed.lidars[0].imu_from_lidar.Inverse();
+  const SE3 cam0_error = believed.cameras[0].cam_from_imu.Inverse() * truth.cameras[0].cam_from_imu;
+  const SE3 expected = cam0_error * lidar_error;
+  const json& e = (*best)["rig_from_prior"];
+  const std::vector<double> w = e["rotation_vector_deg"].get<std::vector<double>>();
+  const std::vector<double> t = e["translation_mm"].get<std::vector<double>>();
+  const SE3 estimated(so3::Exp(Vec3(w[0], w[1], w[2]) * M_PI / 180.0),
+                      Vec3(t[0], t[1], t[2]) * 1e-3);
+  j["lidar_calibration_error"] = PoseJson(lidar_error);
+  j["cam0_calibration_error"] = PoseJson(cam0_error);
+  j["expected"] = PoseJson(expected);
+  j["estimated_minus_expected"] = {
+      {"rotation_deg", RotationAngleDeg(estimated.rotation() * expected.rotation().conjugate())},
+      {"translation_mm", (estimated.translation() - expected.translation()).norm() * 1e3}};
+  return j;
+}
+
 struct StageState {
   std::string name;
   bool enabled = true;
@@ -852,6 +908,13 @@ json Pipeline::CollectReport() {
     report["trajectories"] = trajectories;
     if (auto rig = ReadJson(JoinPaths(eval, "rig.json"))) report["rig"] = *rig;
   }
+  if (FileExists(Done("global_mapper"))) {
+    if (auto m = ReadJson(JoinPaths(Dir("global_mapper"), "global_mapper_summary.json"))) {
+      const json prior_frame = PriorFrameReport(
+          *m, JoinPaths(sequence_, "rig.yaml"), JoinPaths(sequence_, "truth/rig.yaml"));
+      if (!prior_frame.is_null()) report["prior_frame"] = prior_frame;
+    }
+  }
   const auto status = ReadJson(JoinPaths(eval, "status.json")).value_or(json::object());
 
   // The models side by side: ours, stock mapper on the same matches, stock
@@ -1016,6 +1079,40 @@ void Pipeline::WriteReport(const json& report) {
                         Num(c["calibration_translation_error_mm"], 2),
                         Num(c["refined_rotation_error_deg"], 4),
                         Num(c["refined_translation_error_mm"], 2));
+    }
+  }
+  if (report.contains("prior_frame")) {
+    const json& p = report["prior_frame"];
+    const auto vec = [](const json& v, int decimals) {
+      std::string s;
+      for (const json& x : v) s += (s.empty() ? "" : ", ") + Num(x, decimals);
+      return "[" + s + "]";
+    };
+    const auto row = [&](const std::string& label, const json& pose) {
+      return fmt::format("| {} | {} | {} | {} |\n",
+                         label,
+                         Num(pose["rotation_deg"], 4),
+                         vec(pose["rotation_vector_deg"], 4),
+                         vec(pose["translation_mm"], 2));
+    };
+    const json& e = p["estimated"];
+    md += fmt::format(
+        "\n## LiDAR/IMU frame in the rig frame (rig_from_prior)\n\nThe pose priors and LiDAR "
+        "constraints live in lio's IMU frame, which carries the LiDAR extrinsic calibration "
+        "error; global_mapper's bundle adjustment estimates that frame in the rig frame "
+        "(rotation {}, translation {}; held where the LiDAR constraints do not determine "
+        "it).\n\n| | rotation [deg] | rotation vector, IMU axes [deg] | translation [mm] |\n"
+        "|---|---:|---:|---:|\n",
+        e.value("rotation_refined", false) ? "refined" : "held",
+        e.value("translation_refined", false) ? "refined" : "held");
+    md += row("estimated", e);
+    if (p.contains("expected")) {
+      md += row("expected from truth/rig.yaml (cam0 and LiDAR calibration errors)", p["expected"]);
+      md += row("LiDAR calibration error, imu_from_lidar true · believed⁻¹",
+                p["lidar_calibration_error"]);
+      md += fmt::format("\nEstimate vs expected: {} deg, {} mm.\n",
+                        Num(p["estimated_minus_expected"]["rotation_deg"], 4),
+                        Num(p["estimated_minus_expected"]["translation_mm"], 2));
     }
   }
   if (!report["plots"].empty()) {

@@ -43,6 +43,14 @@ nlohmann::json RoundToJson(const MapperRoundSummary& r) {
         {"linear_solver_seconds", ba.linear_solver_seconds},
         {"evaluation_seconds", ba.evaluation_seconds},
         {"seconds", r.bundle_adjustment_seconds}};
+    if (ba.prior_frame_used) {
+      j["bundle_adjustment"]["prior_frame"] = {
+          {"rotation_refined", ba.prior_frame_rotation_refined},
+          {"translation_refined", ba.prior_frame_translation_refined},
+          {"predicted_rotation_sigma_deg", ba.prior_frame_rotation_sigma_deg},
+          {"predicted_translation_sigma_m", ba.prior_frame_translation_sigma_m},
+          {"note", ba.prior_frame_note}};
+    }
   }
   j["filtered_observations"] = r.filtered_observations;
   if (r.retriangulation_skipped) {
@@ -112,6 +120,17 @@ nlohmann::json ComponentToJson(const MapperComponentSummary& c) {
   for (const MapperRoundSummary& r : c.refinement)
     rounds.push_back(RoundToJson(r));
   j["refinement"] = rounds;
+  // X = rig_from_prior after the last adjustment (refine_prior_frame).
+  if (!c.refinement.empty() && c.refinement.back().bundle_adjustment.prior_frame_used) {
+    const colmap::BundleAdjustmentStats& ba = c.refinement.back().bundle_adjustment;
+    const Vec3 omega_deg = so3::Log(ba.rig_from_prior.rotation()) * 180.0 / M_PI;
+    const Vec3 t_mm = ba.rig_from_prior.translation() * 1e3;
+    j["rig_from_prior"] = {{"rotation_vector_deg", {omega_deg.x(), omega_deg.y(), omega_deg.z()}},
+                           {"rotation_deg", omega_deg.norm()},
+                           {"translation_mm", {t_mm.x(), t_mm.y(), t_mm.z()}},
+                           {"rotation_refined", ba.prior_frame_rotation_refined},
+                           {"translation_refined", ba.prior_frame_translation_refined}};
+  }
   j["dropped_weak_frames"] = c.dropped_weak_frames;
   j["model"] = ModelCountsToJson(c.model);
   j["to_model_seconds"] = c.to_model_seconds;

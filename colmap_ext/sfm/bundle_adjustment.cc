@@ -193,10 +193,114 @@ struct BaSpec {
   std::vector<PositionPrior> position_priors;
   std::vector<RotationPrior> rotation_priors;
   std::vector<LidarTerm> lidar_terms;
+  // X = rig_from_prior (refine_prior_frame): the prior and LiDAR terms go
+  // through X; its rotation / translation are refined where *_free.
+  bool prior_frame = false;
+  bool prior_frame_rotation_free = false;
+  bool prior_frame_translation_free = false;
   bool first_frame_fixed = false;  // gauge: first frame held
   frame_t scale_frame = 0;         // gauge: this frame's translation
   int scale_coordinate = -1;       //   coordinate held (-1: none)
 };
+
+// The guard of X (bundle_adjustment.h): predicted standard deviations of
+// X's rotation (rad) and translation (m), largest axis of each block of the
+// marginal covariance of X in a linear model of the pose terms (LiDAR terms
+// and priors) at the current values, whose unknowns are X (tangent [dtheta
+// (EigenQuaternionManifold); dt]) and the similarity that the images leave
+// free: world_from_rig -> S * world_from_rig with S = (1 + s) Exp(omega) x +
+// w. J = d r / d [dtheta, dt, s, omega, w] by central differences (steps
+// 1e-6 rad / m / unitless); H = J^T J; X's marginal information is the Schur
+// complement H_xx - H_xg H_gg^+ H_gx (pseudo-inverse: a similarity direction
+// no term sees is a gauge that does not touch X). +inf when that is singular.
+void PriorFrameSigmas(const BaSpec& spec,
+                      const MapperState& state,
+                      double* rotation_sigma,
+                      double* translation_sigma) {
+  constexpr int kNumUnknowns = 13;
+  using VecZ = Eigen::Matrix<double, kNumUnknowns, 1>;
+  using MatZ = Eigen::Matrix<double, kNumUnknowns, kNumUnknowns>;
+  *rotation_sigma = std::numeric_limits<double>::infinity();
+  *translation_sigma = std::numeric_limits<double>::infinity();
+  // Every pose term's whitened residual at the perturbation z.
+  const auto residuals = [&](const VecZ& z) {
+    const SE3 x(so3::Exp(Vec3(z.segment<3>(0))) * state.rig_from_prior.rotation(),
+                state.rig_from_prior.translation() + z.segment<3>(3));
+    const Quat world_rotation = so3::Exp(Vec3(z.segment<3>(7)));
+    const auto pose = [&](frame_t frame_id) {
+      const SE3 world_from_rig = state.frames.at(frame_id).rig_from_world.Inverse();
+      return PoseBlock(SE3(world_rotation * world_from_rig.rotation(),
+                           (1.0 + z(6)) * (world_rotation * world_from_rig.translation()) +
+                               z.segment<3>(10))
+                           .Inverse());
+    };
+    const PoseBlock xb(x);
+    std::vector<double> r;
+    const auto evaluate = [&](const ceres::CostFunction& cost, const double* const* params) {
+      std::vector<double> out(cost.num_residuals());
+      if (cost.Evaluate(params, out.data(), nullptr)) r.insert(r.end(), out.begin(), out.end());
+    };
+    for (const PositionPrior& prior : spec.position_priors) {
+      const PoseBlock b = pose(prior.frame_id);
+      const std::unique_ptr<ceres::CostFunction> cost(
+          PriorFramePositionPriorFunctor::Create(prior.position, prior.sqrt_information));
+      const double* params[] = {b.q.data(), b.t.data(), xb.t.data()};
+      evaluate(*cost, params);
+    }
+    for (const RotationPrior& prior : spec.rotation_priors) {
+      const PoseBlock b = pose(prior.frame_id);
+      const std::unique_ptr<ceres::CostFunction> cost(
+          PriorFrameRotationPriorFunctor::Create(prior.rig_from_world, prior.sigma));
+      const double* params[] = {b.q.data(), xb.q.data()};
+      evaluate(*cost, params);
+    }
+    for (const LidarTerm& term : spec.lidar_terms) {
+      const PoseBlock b1 = pose(term.frame_id1);
+      const PoseBlock b2 = pose(term.frame_id2);
+      const std::unique_ptr<ceres::CostFunction> cost(
+          PriorFrameRelativePoseFunctor::Create(term.rig1_from_rig2, term.sqrt_information));
+      const double* params[] = {
+          b1.q.data(), b1.t.data(), b2.q.data(), b2.t.data(), xb.q.data(), xb.t.data()};
+      evaluate(*cost, params);
+    }
+    return Eigen::VectorXd(Eigen::Map<const Eigen::VectorXd>(r.data(), r.size()));
+  };
+  const size_t num_residuals = static_cast<size_t>(residuals(VecZ::Zero()).size());
+  constexpr double kStep = 1e-6;
+  Eigen::MatrixXd J(num_residuals, kNumUnknowns);
+  for (int k = 0; k < kNumUnknowns; ++k) {
+    const VecZ step = VecZ::Unit(k) * kStep;
+    const Eigen::VectorXd plus = residuals(step);
+    const Eigen::VectorXd minus = residuals(-step);
+    if (static_cast<size_t>(plus.size()) != num_residuals ||
+        static_cast<size_t>(minus.size()) != num_residuals) {
+      return;
+    }
+    J.col(k) = (plus - minus) / (2.0 * kStep);
+  }
+  const MatZ H = J.transpose() * J;
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, 7, 7>> gauge(
+      H.bottomRightCorner<7, 7>());
+  const Eigen::Matrix<double, 7, 1> values = gauge.eigenvalues();
+  Eigen::Matrix<double, 7, 1> inverse_values = Eigen::Matrix<double, 7, 1>::Zero();
+  for (int i = 0; i < 7; ++i) {
+    if (values(i) > 1e-12 * std::max(1.0, values(6))) inverse_values(i) = 1.0 / values(i);
+  }
+  const Eigen::Matrix<double, 7, 7> gauge_pinv =
+      gauge.eigenvectors() * inverse_values.asDiagonal() * gauge.eigenvectors().transpose();
+  const Eigen::Matrix<double, 6, 7> H_xg = H.topRightCorner<6, 7>();
+  Mat6 information = H.topLeftCorner<6, 6>() - H_xg * gauge_pinv * H_xg.transpose();
+  information = 0.5 * (information + information.transpose()).eval();
+  const Eigen::SelfAdjointEigenSolver<Mat6> eigen(information);
+  const Vec6 x_values = eigen.eigenvalues();
+  if (!(x_values(0) > 1e-12 * std::max(1.0, x_values(5)))) return;
+  const Mat6 covariance = eigen.eigenvectors() * x_values.cwiseInverse().asDiagonal() *
+                          eigen.eigenvectors().transpose();
+  const Eigen::SelfAdjointEigenSolver<Mat3> rotation(covariance.topLeftCorner<3, 3>());
+  const Eigen::SelfAdjointEigenSolver<Mat3> translation(covariance.bottomRightCorner<3, 3>());
+  *rotation_sigma = std::sqrt(std::max(0.0, rotation.eigenvalues()(2)));
+  *translation_sigma = std::sqrt(std::max(0.0, translation.eigenvalues()(2)));
+}
 
 int NumThreads(const BundleAdjustmentOptions& options) {
   return options.num_threads > 0
@@ -215,6 +319,7 @@ void SolveWithCeres(const BundleAdjustmentOptions& options,
   }
   const bool refine_rig = state->has_rig && options.refine_cam_from_rig;
   const camera_t reference_camera = *spec.camera_set->begin();
+  PoseBlock prior_frame_block(state->rig_from_prior);
   std::map<camera_t, PoseBlock> rig_blocks;
   if (refine_rig) {
     for (camera_t camera_id : *spec.camera_set) {
@@ -268,23 +373,66 @@ void SolveWithCeres(const BundleAdjustmentOptions& options,
       problem.SetManifold(camera.params.data(), owned_manifolds.back().get());
     }
   }
+  double* x_q = prior_frame_block.q.data();
+  double* x_t = prior_frame_block.t.data();
   for (const PositionPrior& prior : spec.position_priors) {
     PoseBlock& block = frame_blocks.at(prior.frame_id);
-    problem.AddResidualBlock(
-        PositionPriorFunctor::Create(prior.position, prior.sqrt_information), nullptr,
-        block.q.data(), block.t.data());
+    if (spec.prior_frame) {
+      problem.AddResidualBlock(
+          PriorFramePositionPriorFunctor::Create(prior.position, prior.sqrt_information),
+          nullptr,
+          block.q.data(),
+          block.t.data(),
+          x_t);
+    } else {
+      problem.AddResidualBlock(PositionPriorFunctor::Create(prior.position, prior.sqrt_information),
+                               nullptr,
+                               block.q.data(),
+                               block.t.data());
+    }
   }
   for (const RotationPrior& prior : spec.rotation_priors) {
     PoseBlock& block = frame_blocks.at(prior.frame_id);
-    problem.AddResidualBlock(RotationPriorFunctor::Create(prior.rig_from_world, prior.sigma),
-                             nullptr, block.q.data());
+    if (spec.prior_frame) {
+      problem.AddResidualBlock(
+          PriorFrameRotationPriorFunctor::Create(prior.rig_from_world, prior.sigma),
+          nullptr,
+          block.q.data(),
+          x_q);
+    } else {
+      problem.AddResidualBlock(
+          RotationPriorFunctor::Create(prior.rig_from_world, prior.sigma), nullptr, block.q.data());
+    }
   }
   for (const LidarTerm& term : spec.lidar_terms) {
     PoseBlock& b1 = frame_blocks.at(term.frame_id1);
     PoseBlock& b2 = frame_blocks.at(term.frame_id2);
-    problem.AddResidualBlock(
-        RelativePoseFunctor::Create(term.rig1_from_rig2, term.sqrt_information), nullptr,
-        b1.q.data(), b1.t.data(), b2.q.data(), b2.t.data());
+    if (spec.prior_frame) {
+      problem.AddResidualBlock(
+          PriorFrameRelativePoseFunctor::Create(term.rig1_from_rig2, term.sqrt_information),
+          nullptr,
+          b1.q.data(),
+          b1.t.data(),
+          b2.q.data(),
+          b2.t.data(),
+          x_q,
+          x_t);
+    } else {
+      problem.AddResidualBlock(
+          RelativePoseFunctor::Create(term.rig1_from_rig2, term.sqrt_information),
+          nullptr,
+          b1.q.data(),
+          b1.t.data(),
+          b2.q.data(),
+          b2.t.data());
+    }
+  }
+  if (problem.HasParameterBlock(x_q)) {
+    problem.SetManifold(x_q, &quaternion_manifold);
+    if (!spec.prior_frame_rotation_free) problem.SetParameterBlockConstant(x_q);
+  }
+  if (problem.HasParameterBlock(x_t) && !spec.prior_frame_translation_free) {
+    problem.SetParameterBlockConstant(x_t);
   }
   // Gauge.
   if (!options.refine_frame_poses) {
@@ -361,6 +509,7 @@ void SolveWithCeres(const BundleAdjustmentOptions& options,
   for (const auto& [camera_id, block] : rig_blocks) {
     state->cam_from_rig[camera_id] = block.ToSE3();
   }
+  if (spec.prior_frame) state->rig_from_prior = prior_frame_block.ToSE3();
 }
 
 // The same problem through SolveSchurBundleAdjustment (schur_bundle_adjuster.h).
@@ -434,20 +583,38 @@ void SolveWithSchur(const BundleAdjustmentOptions& options,
     problem.observations.push_back(o);
   }
   std::vector<std::unique_ptr<ceres::CostFunction>> costs;
+  const bool x = spec.prior_frame;
   for (const PositionPrior& prior : spec.position_priors) {
-    costs.emplace_back(PositionPriorFunctor::Create(prior.position, prior.sqrt_information));
+    costs.emplace_back(
+        x ? PriorFramePositionPriorFunctor::Create(prior.position, prior.sqrt_information)
+          : PositionPriorFunctor::Create(prior.position, prior.sqrt_information));
     problem.pose_terms.push_back(
-        {SchurBaPoseTerm::kPose, costs.back().get(), frame_index.at(prior.frame_id), -1});
+        {SchurBaPoseTerm::kPose, costs.back().get(), frame_index.at(prior.frame_id), -1, x});
   }
   for (const RotationPrior& prior : spec.rotation_priors) {
-    costs.emplace_back(RotationPriorFunctor::Create(prior.rig_from_world, prior.sigma));
+    costs.emplace_back(x ? PriorFrameRotationPriorFunctor::Create(prior.rig_from_world, prior.sigma)
+                         : RotationPriorFunctor::Create(prior.rig_from_world, prior.sigma));
     problem.pose_terms.push_back(
-        {SchurBaPoseTerm::kRotation, costs.back().get(), frame_index.at(prior.frame_id), -1});
+        {SchurBaPoseTerm::kRotation, costs.back().get(), frame_index.at(prior.frame_id), -1, x});
   }
   for (const LidarTerm& term : spec.lidar_terms) {
-    costs.emplace_back(RelativePoseFunctor::Create(term.rig1_from_rig2, term.sqrt_information));
-    problem.pose_terms.push_back({SchurBaPoseTerm::kRelative, costs.back().get(),
-                                  frame_index.at(term.frame_id1), frame_index.at(term.frame_id2)});
+    costs.emplace_back(
+        x ? PriorFrameRelativePoseFunctor::Create(term.rig1_from_rig2, term.sqrt_information)
+          : RelativePoseFunctor::Create(term.rig1_from_rig2, term.sqrt_information));
+    problem.pose_terms.push_back({SchurBaPoseTerm::kRelative,
+                                  costs.back().get(),
+                                  frame_index.at(term.frame_id1),
+                                  frame_index.at(term.frame_id2),
+                                  x});
+  }
+  if (x) {
+    problem.has_rig_from_prior = true;
+    problem.rig_from_prior_rotation = state->rig_from_prior.rotation();
+    problem.rig_from_prior_translation = state->rig_from_prior.translation();
+    for (int k = 0; k < 3; ++k) {
+      problem.rig_from_prior_fixed[k] = !spec.prior_frame_rotation_free;
+      problem.rig_from_prior_fixed[3 + k] = !spec.prior_frame_translation_free;
+    }
   }
   SchurBaOptions schur_options;
   schur_options.loss_type = options.loss_type;
@@ -482,6 +649,10 @@ void SolveWithSchur(const BundleAdjustmentOptions& options,
   }
   for (size_t p = 0; p < track_of_point.size(); ++p) {
     state->tracks[track_of_point[p]].xyz = problem.points[p];
+  }
+  if (x) {
+    state->rig_from_prior =
+        SE3(problem.rig_from_prior_rotation.normalized(), problem.rig_from_prior_translation);
   }
 }
 
@@ -519,6 +690,8 @@ bool BundleAdjustmentOptions::Check() const {
   CHECK_OPTION_GE(gradient_tolerance, 0.0);
   CHECK_OPTION_GE(parameter_tolerance, 0.0);
   CHECK_OPTION_GE(max_tracks_per_image, 0);
+  CHECK_OPTION_GE(prior_frame_max_rotation_sigma_deg, 0.0);
+  CHECK_OPTION_GE(prior_frame_max_translation_sigma_m, 0.0);
   CHECK_OPTION_GE(dense_schur_max_frames, 0);
   CHECK_OPTION_MSG(solver, solver == "auto" || solver == "ceres" || solver == "schur",
                    "one of auto, ceres, schur");
@@ -709,6 +882,39 @@ BundleAdjustmentStats RunBundleAdjustment(
     }
   }
 
+  // Prior frame X: which parts the data determine (guard, header comment).
+  if (options.refine_prior_frame &&
+      !(position_priors.empty() && rotation_priors.empty() && lidar_terms.empty())) {
+    spec.prior_frame = true;
+    stats.prior_frame_used = true;
+    if (!options.refine_frame_poses) {
+      stats.prior_frame_note = "held: frame poses constant";
+    } else if (lidar_terms.empty()) {
+      stats.prior_frame_note = "held: no LiDAR terms";
+    } else {
+      double rotation_sigma = 0.0;
+      double translation_sigma = 0.0;
+      PriorFrameSigmas(spec, *state, &rotation_sigma, &translation_sigma);
+      stats.prior_frame_rotation_sigma_deg = rotation_sigma * 180.0 / M_PI;
+      stats.prior_frame_translation_sigma_m = translation_sigma;
+      spec.prior_frame_rotation_free =
+          stats.prior_frame_rotation_sigma_deg <= options.prior_frame_max_rotation_sigma_deg;
+      spec.prior_frame_translation_free =
+          translation_sigma <= options.prior_frame_max_translation_sigma_m;
+      stats.prior_frame_note = fmt::format(
+          "rotation {} (predicted sigma {:.4f} deg, limit {:.4f}), translation {} "
+          "(predicted sigma {:.2f} mm, limit {:.2f})",
+          spec.prior_frame_rotation_free ? "refined" : "held",
+          stats.prior_frame_rotation_sigma_deg,
+          options.prior_frame_max_rotation_sigma_deg,
+          spec.prior_frame_translation_free ? "refined" : "held",
+          translation_sigma * 1e3,
+          options.prior_frame_max_translation_sigma_m * 1e3);
+    }
+    stats.prior_frame_rotation_refined = spec.prior_frame_rotation_free;
+    stats.prior_frame_translation_refined = spec.prior_frame_translation_free;
+  }
+
   const bool refine_rig = state->has_rig && options.refine_cam_from_rig;
   spec.observations = &observations;
   spec.track_set = &track_set;
@@ -726,6 +932,21 @@ BundleAdjustmentStats RunBundleAdjustment(
     SolveWithCeres(options, spec, start, state, &stats);
   }
   stats.final_mean_reprojection_error_px = UpdateTrackErrors(track_set, state);
+  stats.rig_from_prior = state->rig_from_prior;
+  if (stats.prior_frame_used) {
+    const Vec3 omega_deg = so3::Log(state->rig_from_prior.rotation()) * 180.0 / M_PI;
+    const Vec3 t_mm = state->rig_from_prior.translation() * 1e3;
+    LogInfo(
+        "bundle adjustment: prior frame rig_from_prior: {}; now rotation [{:.4f}, {:.4f}, "
+        "{:.4f}] deg (rig axes), translation [{:.2f}, {:.2f}, {:.2f}] mm",
+        stats.prior_frame_note,
+        omega_deg.x(),
+        omega_deg.y(),
+        omega_deg.z(),
+        t_mm.x(),
+        t_mm.y(),
+        t_mm.z());
+  }
   stats.seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start)
           .count();

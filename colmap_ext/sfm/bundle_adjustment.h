@@ -22,6 +22,29 @@
 //    and T_est = rig1_from_world * rig2_from_world^-1, the right perturbation
 //    T_est = T_meas * Exp(xi), xi = [omega; v] = SE3 Log(T_meas^-1 T_est),
 //    whitened as U^T xi with U U^T = covariance^-1 (LLT of the information).
+// Prior frame (refine_prior_frame): the priors and LiDAR constraints are
+// measured in a body frame P (lio's IMU frame, built on the believed LiDAR
+// extrinsic) that may differ from the rig frame by a constant rigid transform
+// X = rig_from_prior (MapperState::rig_from_prior, identity by default). With
+// the option, X is one more unknown (a quaternion on EigenQuaternionManifold
+// and a translation, m) and the terms above compare the priors with
+// prior_from_world = X^-1 * rig_from_world:
+//  - position prior on the origin of P in world, c = (rig_from_world^-1 * X).t;
+//  - rotation prior Log(R_prior^-1 * R_X^-1 * R) / sigma;
+//  - LiDAR term with T_est = X^-1 * rig1_from_world * rig2_from_world^-1 * X
+//    (equivalently, the measurement seen between rig frames is
+//    X * T_meas * X^-1).
+//   X is a hand-eye calibration: a rotation of X shows only through relative
+//   motions that turn about other axes than its own (X^-1 T X = T for T about
+//   X's axis) or translate across it, and its translation only through
+//   relative rotations, (I - R_ij) t_X. Guard: a linear model of the prior
+//   and LiDAR terms at the initial values whose unknowns are X and the
+//   similarity of the world that the images leave free (scale, rotation,
+//   translation: the images fix the relative rig poses up to it) predicts X's
+//   marginal standard deviations (largest axis of the rotation / translation
+//   blocks); rotation and translation of X are each refined only when that is
+//   below prior_frame_max_rotation_sigma_deg / _translation_sigma_m (and
+//   never without LiDAR terms); otherwise that part is held at its value.
 // Gauge (seven degrees of freedom of a similarity; fixed explicitly):
 //  - absolute pose: given by the priors when >= 3 registered frames have a
 //    position prior, or >= 1 has a position prior and >= 1 a rotation prior;
@@ -60,6 +83,15 @@ struct BundleAdjustmentOptions {
   bool refine_frame_poses = true;  // false: structure-only (poses constant)
   bool use_priors = true;          // frame position / rotation prior residuals
   bool use_lidar_constraints = true;  // LiDAR relative pose residuals
+  // Refine X = rig_from_prior between the frame of the priors / LiDAR
+  // constraints and the rig frame (header comment; needs LiDAR terms).
+  bool refine_prior_frame = false;
+  // Guard: refine X's rotation only when its predicted standard deviation
+  // (largest axis) is below this (deg): half the 0.1 deg camera target, well
+  // below a LiDAR extrinsic calibration's typical 0.1-0.5 deg error ...
+  double prior_frame_max_rotation_sigma_deg = 0.05;
+  // ... and its translation only when that is below this (m).
+  double prior_frame_max_translation_sigma_m = 0.002;
   std::string loss_type = "cauchy";   // trivial | huber | cauchy (reprojection)
   double loss_scale = 1.0;            // px; residual scale of the robust loss
   int max_num_iterations = 100;       // Levenberg-Marquardt iterations
@@ -94,6 +126,17 @@ struct BundleAdjustmentStats {
   size_t num_lidar_constraints_skipped =
       0;              // a frame not registered / not in the problem
   std::string gauge;  // how the gauge was fixed (see the header comment)
+  // Prior frame X = rig_from_prior (refine_prior_frame): which parts were
+  // refined, the guard's predicted standard deviations (largest axis; +inf
+  // when unobservable; 0 when not evaluated), why a part was held, and X
+  // after the adjustment (MapperState::rig_from_prior).
+  bool prior_frame_used = false;  // the option was on and X entered the terms
+  bool prior_frame_rotation_refined = false;
+  bool prior_frame_translation_refined = false;
+  double prior_frame_rotation_sigma_deg = 0.0;
+  double prior_frame_translation_sigma_m = 0.0;
+  std::string prior_frame_note;
+  SE3 rig_from_prior;
   double initial_cost = 0.0;  // Ceres cost (0.5 sum rho) before / after
   double final_cost = 0.0;
   double initial_mean_reprojection_error_px = 0.0;
@@ -249,6 +292,111 @@ struct RelativePoseFunctor {
     const Eigen::Quaternion<T> q_m = meas_inverse_.rotation().cast<T>();
     const Eigen::Quaternion<T> q_err = q_m * q12;
     const Vec3T t_err = q_m * t12 + meas_inverse_.translation().cast<T>();
+    Eigen::Map<Eigen::Matrix<T, 6, 1>> r(residual);
+    r = sqrt_information_.cast<T>() * SE3LogT(q_err, t_err);
+    return true;
+  }
+
+ private:
+  SE3 meas_inverse_;
+  Mat6 sqrt_information_;
+};
+
+// The prior / LiDAR terms through X = rig_from_prior (quaternion block
+// rig_from_prior_q, translation block rig_from_prior_t; header comment).
+//
+// Position prior through X: residual = sqrt_information * (c - prior), with c
+// the origin of the prior frame in world, world_from_prior = world_from_rig *
+// X, so c = R^T (t_X - t) for rig_from_world = (R, t).
+struct PriorFramePositionPriorFunctor {
+  PriorFramePositionPriorFunctor(const Eigen::Vector3d& prior_position,
+                                 const Eigen::Matrix3d& sqrt_information)
+      : prior_(prior_position), sqrt_information_(sqrt_information) {}
+  static ceres::CostFunction* Create(const Eigen::Vector3d& prior_position,
+                                     const Eigen::Matrix3d& sqrt_information) {
+    return new ceres::AutoDiffCostFunction<PriorFramePositionPriorFunctor, 3, 4, 3, 3>(
+        new PriorFramePositionPriorFunctor(prior_position, sqrt_information));
+  }
+  // The origin of P does not depend on R_X: no rig_from_prior_q block.
+  template <typename T>
+  bool operator()(const T* rig_from_world_q,
+                  const T* rig_from_world_t,
+                  const T* rig_from_prior_t,
+                  T* residual) const {
+    const Eigen::Map<const Eigen::Quaternion<T>> q(rig_from_world_q);
+    const Eigen::Map<const Eigen::Matrix<T, 3, 1>> t(rig_from_world_t);
+    const Eigen::Map<const Eigen::Matrix<T, 3, 1>> tx(rig_from_prior_t);
+    const Eigen::Matrix<T, 3, 1> center = q.conjugate() * (tx - t);
+    Eigen::Map<Eigen::Matrix<T, 3, 1>> r(residual);
+    r = sqrt_information_.cast<T>() * (center - prior_.cast<T>());
+    return true;
+  }
+
+ private:
+  Eigen::Vector3d prior_;
+  Eigen::Matrix3d sqrt_information_;
+};
+
+// Rotation prior through X: residual = Log(R_prior^-1 * R_X^-1 * R) / sigma,
+// with R_X^-1 R the prior_from_world rotation.
+struct PriorFrameRotationPriorFunctor {
+  PriorFrameRotationPriorFunctor(const Eigen::Quaterniond& prior_from_world, double sigma_rad)
+      : prior_inverse_(prior_from_world.conjugate()), inv_sigma_(1.0 / sigma_rad) {}
+  static ceres::CostFunction* Create(const Eigen::Quaterniond& prior_from_world, double sigma_rad) {
+    return new ceres::AutoDiffCostFunction<PriorFrameRotationPriorFunctor, 3, 4, 4>(
+        new PriorFrameRotationPriorFunctor(prior_from_world, sigma_rad));
+  }
+  template <typename T>
+  bool operator()(const T* rig_from_world_q, const T* rig_from_prior_q, T* residual) const {
+    const Eigen::Map<const Eigen::Quaternion<T>> q(rig_from_world_q);
+    const Eigen::Map<const Eigen::Quaternion<T>> qx(rig_from_prior_q);
+    const Eigen::Quaternion<T> delta = prior_inverse_.cast<T>() * (qx.conjugate() * q);
+    Eigen::Map<Eigen::Matrix<T, 3, 1>> r(residual);
+    r = QuaternionLogT(delta) * T(inv_sigma_);
+    return true;
+  }
+
+ private:
+  Eigen::Quaterniond prior_inverse_;
+  double inv_sigma_;
+};
+
+// LiDAR relative pose through X: with T12 = rig1_from_world * rig2_from_world^-1,
+// the estimate in the prior frame is T_est = X^-1 * T12 * X =
+// (R_X^T R12 R_X, R_X^T (R12 t_X + t12 - t_X)); residual = sqrt_information *
+// Log(T_meas^-1 * T_est) (6, [omega; v]) as RelativePoseFunctor, T_meas =
+// prior1_from_prior2.
+struct PriorFrameRelativePoseFunctor {
+  PriorFrameRelativePoseFunctor(const SE3& prior1_from_prior2, const Mat6& sqrt_information)
+      : meas_inverse_(prior1_from_prior2.Inverse()), sqrt_information_(sqrt_information) {}
+  static ceres::CostFunction* Create(const SE3& prior1_from_prior2, const Mat6& sqrt_information) {
+    return new ceres::AutoDiffCostFunction<PriorFrameRelativePoseFunctor, 6, 4, 3, 4, 3, 4, 3>(
+        new PriorFrameRelativePoseFunctor(prior1_from_prior2, sqrt_information));
+  }
+  template <typename T>
+  bool operator()(const T* rig1_from_world_q,
+                  const T* rig1_from_world_t,
+                  const T* rig2_from_world_q,
+                  const T* rig2_from_world_t,
+                  const T* rig_from_prior_q,
+                  const T* rig_from_prior_t,
+                  T* residual) const {
+    using Vec3T = Eigen::Matrix<T, 3, 1>;
+    const Eigen::Map<const Eigen::Quaternion<T>> q1(rig1_from_world_q);
+    const Eigen::Map<const Vec3T> t1(rig1_from_world_t);
+    const Eigen::Map<const Eigen::Quaternion<T>> q2(rig2_from_world_q);
+    const Eigen::Map<const Vec3T> t2(rig2_from_world_t);
+    const Eigen::Map<const Eigen::Quaternion<T>> qx(rig_from_prior_q);
+    const Eigen::Map<const Vec3T> tx(rig_from_prior_t);
+    const Eigen::Quaternion<T> q12 = q1 * q2.conjugate();
+    const Vec3T t12 = t1 - q12 * t2;
+    // prior1_from_prior2 = X^-1 * rig1_from_rig2 * X.
+    const Eigen::Quaternion<T> qx_inv = qx.conjugate();
+    const Eigen::Quaternion<T> q_est = qx_inv * q12 * qx;
+    const Vec3T t_est = qx_inv * (q12 * tx + t12 - tx);
+    const Eigen::Quaternion<T> q_m = meas_inverse_.rotation().cast<T>();
+    const Eigen::Quaternion<T> q_err = q_m * q_est;
+    const Vec3T t_err = q_m * t_est + meas_inverse_.translation().cast<T>();
     Eigen::Map<Eigen::Matrix<T, 6, 1>> r(residual);
     r = sqrt_information_.cast<T>() * SE3LogT(q_err, t_err);
     return true;

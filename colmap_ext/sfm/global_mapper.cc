@@ -423,6 +423,25 @@ GlobalMapperResult RunGlobalMapper(const Database& database, const Rig* rig,
               c, round, r.model.registered_frames, r.model.points, r.model.observations,
               r.model.mean_reprojection_error_px);
     }
+    if (!comp.refinement.empty() && comp.refinement.back().bundle_adjustment.prior_frame_used) {
+      const BundleAdjustmentStats& ba = comp.refinement.back().bundle_adjustment;
+      const Vec3 omega_deg = so3::Log(state.rig_from_prior.rotation()) * 180.0 / M_PI;
+      const Vec3 t_mm = state.rig_from_prior.translation() * 1e3;
+      LogInfo(
+          "global_mapper: component {}: rig_from_prior (the priors' / LiDAR constraints' "
+          "frame in the rig frame): rotation {:.4f} deg [{:.4f}, {:.4f}, {:.4f}] (rig axes), "
+          "translation [{:.2f}, {:.2f}, {:.2f}] mm; rotation {}, translation {}",
+          c,
+          omega_deg.norm(),
+          omega_deg.x(),
+          omega_deg.y(),
+          omega_deg.z(),
+          t_mm.x(),
+          t_mm.y(),
+          t_mm.z(),
+          ba.prior_frame_rotation_refined ? "refined" : "held",
+          ba.prior_frame_translation_refined ? "refined" : "held");
+    }
     comp.dropped_weak_frames =
         DropWeakFrames(options.min_frame_observations, base.cameras, &state);
     comp.model = ModelCounts(state);

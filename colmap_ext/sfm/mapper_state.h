@@ -120,6 +120,10 @@ struct MapperState {
   ViewGraph view_graph;
   std::vector<LidarConstraint> lidar_constraints;
   std::vector<Track> tracks;
+  // rig_from_prior: the rig frame from the frame in which the pose priors and
+  // the LiDAR constraints are expressed (their "IMU" frame). Identity unless
+  // bundle adjustment refines it (BundleAdjustmentOptions::refine_prior_frame).
+  SE3 rig_from_prior;
 
   const SfmFrame& FrameOf(image_t image_id) const;
   SE3 CamFromWorld(image_t image_id) const;

@@ -78,6 +78,8 @@ struct State {
   std::vector<Vec3> t;
   std::vector<std::vector<double>> params;
   std::vector<Vec3> points;
+  Quat qx = Quat::Identity();  // X = rig_from_prior (when the problem has it)
+  Vec3 tx = Vec3::Zero();
 };
 
 // The problem's values (rotations normalised).
@@ -90,6 +92,8 @@ State StateFromProblem(const SchurBaProblem& problem) {
   }
   for (const SchurBaCamera& c : problem.cameras) x.params.push_back(c.params);
   x.points = problem.points;
+  x.qx = problem.rig_from_prior_rotation.normalized();
+  x.tx = problem.rig_from_prior_translation;
   return x;
 }
 
@@ -205,6 +209,68 @@ double EvaluatePoseTerm(const SchurBaPoseTerm& term,
   return 0.5 * residual->squaredNorm();
 }
 
+// A pose term through X (uses_rig_from_prior): residual and, with
+// jacobians != nullptr, one m x 3 tangent Jacobian per parameter group with
+// the group's first variable: frame f rotation 6f / translation 6f + 3, X
+// rotation x_offset / translation x_offset + 3 (blocks in the cost function's
+// order, SchurBaPoseTerm). Returns 0.5 |r|^2.
+struct TangentBlock {
+  int offset = 0;
+  Eigen::MatrixXd jacobian;
+};
+double EvaluatePriorFrameTerm(const SchurBaPoseTerm& term,
+                              const State& x,
+                              int x_offset,
+                              Eigen::VectorXd* residual,
+                              std::vector<TangentBlock>* jacobians) {
+  const int m = term.cost->num_residuals();
+  residual->resize(m);
+  struct Group {
+    std::vector<double> values;
+    int offset;
+    const Quat* q;  // rotation group: its quaternion; translation: null
+  };
+  std::vector<Group> groups;
+  auto add_rotation = [&](const Quat& q, int offset) {
+    groups.push_back({std::vector<double>(q.coeffs().data(), q.coeffs().data() + 4), offset, &q});
+  };
+  auto add_translation = [&](const Vec3& t, int offset) {
+    groups.push_back({std::vector<double>(t.data(), t.data() + 3), offset, nullptr});
+  };
+  add_rotation(x.q[term.frame1], 6 * term.frame1);
+  if (term.kind != SchurBaPoseTerm::kRotation) {
+    add_translation(x.t[term.frame1], 6 * term.frame1 + 3);
+  }
+  if (term.kind == SchurBaPoseTerm::kRelative) {
+    add_rotation(x.q[term.frame2], 6 * term.frame2);
+    add_translation(x.t[term.frame2], 6 * term.frame2 + 3);
+  }
+  if (term.kind != SchurBaPoseTerm::kPose) add_rotation(x.qx, x_offset);
+  if (term.kind != SchurBaPoseTerm::kRotation) add_translation(x.tx, x_offset + 3);
+  std::vector<const double*> blocks;
+  for (const Group& g : groups) blocks.push_back(g.values.data());
+  if (jacobians == nullptr) {
+    THROW_CHECK(term.cost->Evaluate(blocks.data(), residual->data(), nullptr));
+    return 0.5 * residual->squaredNorm();
+  }
+  using RowMajor = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+  std::vector<RowMajor> raw;
+  std::vector<double*> raw_ptrs;
+  for (const Group& g : groups) raw.emplace_back(m, static_cast<int>(g.values.size()));
+  for (RowMajor& j : raw) raw_ptrs.push_back(j.data());
+  THROW_CHECK(term.cost->Evaluate(blocks.data(), residual->data(), raw_ptrs.data()));
+  jacobians->clear();
+  for (size_t k = 0; k < groups.size(); ++k) {
+    TangentBlock block;
+    block.offset = groups[k].offset;
+    block.jacobian = groups[k].q != nullptr
+                         ? Eigen::MatrixXd(raw[k] * QuaternionTangentJacobian(*groups[k].q))
+                         : Eigen::MatrixXd(raw[k]);
+    jacobians->push_back(std::move(block));
+  }
+  return 0.5 * residual->squaredNorm();
+}
+
 class Solver {
  public:
   Solver(const SchurBaOptions& options, SchurBaProblem* problem)
@@ -225,9 +291,16 @@ class Solver {
       camera_offset_.push_back(num_vars_);
       num_vars_ += static_cast<int>(camera.free_indices.size());
     }
+    if (problem->has_rig_from_prior) {
+      x_offset_ = num_vars_;
+      num_vars_ += 6;
+    }
     fixed_.assign(num_vars_, 0);
     for (int f = 0; f < num_frames; ++f) {
       for (int k = 0; k < 6; ++k) fixed_[6 * f + k] = problem->frames[f].fixed[k] ? 1 : 0;
+    }
+    if (problem->has_rig_from_prior) {
+      for (int k = 0; k < 6; ++k) fixed_[x_offset_ + k] = problem->rig_from_prior_fixed[k] ? 1 : 0;
     }
     // Point ranges of the observations (sorted by point).
     point_begin_.assign(problem->points.size() + 1, 0);
@@ -246,6 +319,8 @@ class Solver {
       THROW_CHECK(term.frame1 >= 0 && term.frame1 < num_frames);
       THROW_CHECK(term.kind != SchurBaPoseTerm::kRelative ||
                   (term.frame2 >= 0 && term.frame2 < num_frames));
+      THROW_CHECK_MSG(!term.uses_rig_from_prior || problem->has_rig_from_prior,
+                      "a pose term uses rig_from_prior, but the problem has none");
     }
     x_ = FromProblem();
     lin_.resize(problem->observations.size());
@@ -276,6 +351,10 @@ class Solver {
     }
     for (size_t c = 0; c < problem_.cameras.size(); ++c) problem_.cameras[c].params = x_.params[c];
     problem_.points = x_.points;
+    if (problem_.has_rig_from_prior) {
+      problem_.rig_from_prior_rotation = x_.qx;
+      problem_.rig_from_prior_translation = x_.tx;
+    }
   }
 
   // Cost at x (no Jacobians).
@@ -292,7 +371,8 @@ class Solver {
         std::plus<double>());
     Eigen::VectorXd r;
     for (const SchurBaPoseTerm& term : problem_.pose_terms) {
-      cost += EvaluatePoseTerm(term, x, &r, nullptr);
+      cost += term.uses_rig_from_prior ? EvaluatePriorFrameTerm(term, x, x_offset_, &r, nullptr)
+                                       : EvaluatePoseTerm(term, x, &r, nullptr);
     }
     return cost;
   }
@@ -348,7 +428,18 @@ class Solver {
     double cost = total.cost;
     Eigen::VectorXd r;
     Eigen::MatrixXd J;
+    std::vector<TangentBlock> blocks;
     for (const SchurBaPoseTerm& term : problem_.pose_terms) {
+      if (term.uses_rig_from_prior) {
+        cost += EvaluatePriorFrameTerm(term, x_, x_offset_, &r, &blocks);
+        for (const TangentBlock& a : blocks) {
+          g_cam_.segment<3>(a.offset) += a.jacobian.transpose() * r;
+          for (const TangentBlock& b : blocks) {
+            U_.block<3, 3>(a.offset, b.offset) += a.jacobian.transpose() * b.jacobian;
+          }
+        }
+        continue;
+      }
       cost += EvaluatePoseTerm(term, x_, &r, &J);
       const int f1 = 6 * term.frame1;
       U_.block<6, 6>(f1, f1) += J.leftCols<6>().transpose() * J.leftCols<6>();
@@ -523,6 +614,10 @@ class Solver {
       x.R[f] = x.q[f].toRotationMatrix();
       x.t[f] += dx_cam_.segment<3>(6 * f + 3);
     }
+    if (problem_.has_rig_from_prior) {
+      x.qx = (so3::Exp(Vec3(dx_cam_.segment<3>(x_offset_))) * x.qx).normalized();
+      x.tx += dx_cam_.segment<3>(x_offset_ + 3);
+    }
     for (size_t c = 0; c < x.params.size(); ++c) {
       const auto& free = problem_.cameras[c].free_indices;
       for (size_t k = 0; k < free.size(); ++k) {
@@ -547,6 +642,7 @@ class Solver {
   double ParameterNorm() const {
     double sq = 0.0;
     for (size_t f = 0; f < x_.q.size(); ++f) sq += 1.0 + x_.t[f].squaredNorm();
+    if (problem_.has_rig_from_prior) sq += 1.0 + x_.tx.squaredNorm();
     for (const auto& params : x_.params) {
       for (double v : params) sq += v * v;
     }
@@ -633,6 +729,7 @@ class Solver {
   SchurBaProblem& problem_;
   Loss loss_;
   int num_vars_ = 0;
+  int x_offset_ = -1;  // first variable of X (has_rig_from_prior)
   std::vector<int> camera_offset_;
   std::vector<char> fixed_;
   std::vector<size_t> point_begin_;

@@ -8,7 +8,10 @@
 //   + 0.5 sum_pose_terms |r_k|^2
 // with rho the robust loss (Ceres' definitions of Huber / Cauchy) and the pose
 // terms (position / rotation priors, LiDAR relative poses) given as Ceres cost
-// functions of the frames' quaternion (x, y, z, w) and translation blocks.
+// functions of the frames' quaternion (x, y, z, w) and translation blocks
+// and, for terms through the prior frame, of X = rig_from_prior's blocks
+// (bundle_adjustment.h, refine_prior_frame): 6 more variables [dtheta; dt] of
+// the reduced system, X's rotation updated as the frames' (q <- Exp(dtheta) q).
 // Parametrisation (as Ceres' EigenQuaternionManifold): rig_from_world rotation
 // q <- Exp(dtheta) * q, translation t <- t + dt, point x <- x + dx, camera
 // parameters p_i <- p_i + dp_i for the free indices.
@@ -56,13 +59,16 @@ struct SchurBaObservation {
 };
 
 // A residual on frame poses only. kind: kPose (blocks q, t of frame1),
-// kRotation (block q of frame1), kRelative (q1, t1, q2, t2).
+// kRotation (block q of frame1), kRelative (q1, t1, q2, t2). With
+// uses_rig_from_prior the cost function takes X's blocks after those: kPose
+// (q, t, t_X), kRotation (q, q_X), kRelative (q1, t1, q2, t2, q_X, t_X).
 struct SchurBaPoseTerm {
   enum Kind { kPose, kRotation, kRelative };
   Kind kind = kPose;
   const ceres::CostFunction* cost = nullptr;  // not owned
   int frame1 = 0;
   int frame2 = -1;
+  bool uses_rig_from_prior = false;  // needs SchurBaProblem::has_rig_from_prior
 };
 
 struct SchurBaProblem {
@@ -71,6 +77,11 @@ struct SchurBaProblem {
   std::vector<Vec3> points;
   std::vector<SchurBaObservation> observations;  // sorted by point
   std::vector<SchurBaPoseTerm> pose_terms;
+  // X = rig_from_prior, shared by the terms with uses_rig_from_prior.
+  bool has_rig_from_prior = false;
+  Quat rig_from_prior_rotation = Quat::Identity();
+  Vec3 rig_from_prior_translation = Vec3::Zero();
+  std::array<bool, 6> rig_from_prior_fixed{};  // tangent coordinates held: [dtheta; dt]
 };
 
 struct SchurBaOptions {
@@ -95,7 +106,7 @@ struct SchurBaSummary {
   double linear_solver_seconds = 0.0;
 };
 
-// Optimises problem->frames / cameras / points in place. The observations must
+// Optimises problem->frames / cameras / points (and X) in place. The observations must
 // be sorted by point (throws InternalError otherwise) and every index valid.
 SchurBaSummary SolveSchurBundleAdjustment(const SchurBaOptions& options,
                                           SchurBaProblem* problem);
