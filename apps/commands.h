@@ -33,5 +33,6 @@ int RunPoseSlam(int argc, char** argv);        // pose_slam_command.cc
 int RunBagImporter(int argc, char** argv);       // bag_commands.cc
 int RunBagExporter(int argc, char** argv);       // bag_commands.cc
 int RunPipeline(int argc, char** argv);          // pipeline_command.cc
+int RunFusion(int argc, char** argv);            // fusion_command.cc
 
 }  // namespace lisfm

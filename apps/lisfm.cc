@@ -24,6 +24,8 @@ const std::vector<Command>& Commands() {
       {"evaluate", "score a trajectory against ground truth (ATE, RPE, HILTI 2022 score)",
        &RunEvaluate},
       {"icp", "register two clouds: point-to-plane or Bayesian ICP, with covariance", &RunIcp},
+      {"fusion", "dense RGB-D SLAM: projective ICP tracking and surfel fusion -> surfels.ply",
+       &RunFusion},
       {"pose_graph",
        "optimise a g2o pose graph (2D/3D): chordal initialisation, then Levenberg-Marquardt on "
        "SE-Sync's objective",

@@ -103,6 +103,82 @@ void AddDatabaseImporterOptions(OptionManager* options, DatabaseImporterOptions*
   options->AddStructCheck([importer] { return importer->Check(); });
 }
 
+void AddProjectiveIcpOptions(OptionManager* options, ProjectiveIcpOptions* icp) {
+  options->AddInt("ProjectiveIcp.num_levels", &icp->num_levels,
+                  "coarse-to-fine levels (level l uses every 2^l-th pixel)", R::Between(1, 5));
+  options->AddInt("ProjectiveIcp.max_iterations_per_level", &icp->max_iterations_per_level,
+                  "Gauss-Newton iterations per level", R::AtLeast(1));
+  options->AddDouble("ProjectiveIcp.max_correspondence_distance_m",
+                     &icp->max_correspondence_distance_m,
+                     "reject matches farther apart than this at the finest level (m; x 2^l "
+                     "at level l)",
+                     R::GreaterThan(0));
+  options->AddDouble("ProjectiveIcp.max_normal_angle_deg", &icp->max_normal_angle_deg,
+                     "reject matches whose normals differ more (deg)",
+                     R::GreaterThan(0).AndAtMost(180));
+  options->AddDouble("ProjectiveIcp.huber_threshold_m", &icp->huber_threshold_m,
+                     "Huber scale of the point-to-plane residual (m; 0 = least squares)",
+                     R::AtLeast(0));
+  options->AddDouble("ProjectiveIcp.convergence_rotation_rad", &icp->convergence_rotation_rad,
+                     "a level ends when a step rotates less (rad) ...", R::AtLeast(0));
+  options->AddDouble("ProjectiveIcp.convergence_translation_m",
+                     &icp->convergence_translation_m, "... and translates less (m)",
+                     R::AtLeast(0));
+  options->AddInt("ProjectiveIcp.min_inliers", &icp->min_inliers,
+                  "fewer matches: the frame keeps the constant-velocity prediction",
+                  R::AtLeast(6));
+  options->AddDouble("ProjectiveIcp.degeneracy_threshold", &icp->degeneracy_threshold,
+                     "min/max Hessian eigenvalue ratio below which the result is degenerate",
+                     R::AtLeast(0));
+  options->AddStructCheck([icp] { return icp->Check(); });
+}
+
+void AddSurfelFusionOptions(OptionManager* options, SurfelFusionOptions* fusion) {
+  options->AddDouble("Fusion.max_merge_distance_m", &fusion->max_merge_distance_m,
+                     "merge an observation into a surfel closer than this along its normal (m)",
+                     R::GreaterThan(0));
+  options->AddDouble("Fusion.max_merge_angle_deg", &fusion->max_merge_angle_deg,
+                     "... whose normal differs less than this (deg)",
+                     R::GreaterThan(0).AndAtMost(180));
+  options->AddInt("Fusion.association_radius_px", &fusion->association_radius_px,
+                  "search window radius around a pixel for its surfel (pixels)", R::Between(0, 3));
+  options->AddInt("Fusion.unstable_age_frames", &fusion->unstable_age_frames,
+                  "remove surfels first seen more than this many frames ago ...", R::AtLeast(0));
+  options->AddDouble("Fusion.unstable_min_confidence", &fusion->unstable_min_confidence,
+                     "... with a confidence (merged observations) below this (0 = keep all)",
+                     R::AtLeast(0));
+  options->AddDouble("Fusion.output_min_confidence", &fusion->output_min_confidence,
+                     "write surfels with at least this confidence", R::AtLeast(0));
+  options->AddStructCheck([fusion] { return fusion->Check(); });
+}
+
+void AddRgbdFusionOptions(OptionManager* options, RgbdFusionOptions* rgbd) {
+  options->AddInt("Fusion.downsample_factor", &rgbd->downsample_factor,
+                  "use every k-th pixel in both directions (2: 640x480 -> 320x240)",
+                  R::Between(1, 8));
+  options->AddDouble("Fusion.min_depth_m", &rgbd->min_depth_m, "ignore depths below (m)",
+                     R::AtLeast(0));
+  options->AddDouble("Fusion.max_depth_m", &rgbd->max_depth_m, "ignore depths above (m)",
+                     R::GreaterThan(0));
+  options->RequireLess("Fusion.min_depth_m", "Fusion.max_depth_m");
+  options->AddDouble("Fusion.max_depth_jump", &rgbd->max_depth_jump,
+                     "no normal across a neighbour depth step above this fraction of the depth",
+                     R::GreaterThan(0));
+  options->AddDouble("Fusion.max_incidence_deg", &rgbd->max_incidence_deg,
+                     "drop pixels seen more obliquely (angle between normal and ray, deg)",
+                     R::GreaterThan(0).AndAtMost(90));
+  options->AddBool("Fusion.bilateral_filter", &rgbd->bilateral_filter,
+                   "bilateral filter of the depth before fusion");
+  options->AddDouble("Fusion.bilateral_sigma_px", &rgbd->bilateral_sigma_px,
+                     "bilateral filter: spatial sigma (pixels)", R::GreaterThan(0));
+  options->AddDouble("Fusion.bilateral_sigma_depth_m", &rgbd->bilateral_sigma_depth_m,
+                     "bilateral filter: depth sigma (m)", R::GreaterThan(0));
+  options->AddInt("Fusion.model_splat_px", &rgbd->model_splat_px,
+                  "tracking target: a surfel covers up to this many pixels around its own",
+                  R::Between(0, 3));
+  options->AddStructCheck([rgbd] { return rgbd->Check(); });
+}
+
 void AddIcpOptions(OptionManager* options, IcpOptions* icp) {
   options->AddInt("Icp.max_iterations",
                   &icp->max_iterations,

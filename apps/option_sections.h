@@ -18,6 +18,9 @@
 #include "icp/bayesian_icp.h"
 #include "icp/icp.h"
 #include "icp/normals.h"
+#include "icp/projective_icp.h"
+#include "icp/rgbd_fusion.h"
+#include "icp/surfel_map.h"
 #include "importers/database_importer.h"
 #include "lio/imu.h"
 #include "lio/lio_odometry.h"
@@ -44,6 +47,13 @@ void AddSgldOptions(OptionManager* options, SgldOptions* sgld);
 // min_planarity, field_of_view_gate and visibility_gate_m are registered
 // (the command takes the other bayes->icp fields from its Icp.* options).
 void AddBayesianIcpOptions(OptionManager* options, BayesianIcpOptions* bayes);
+
+// ProjectiveIcp.*: frame-to-model tracking of lisfm fusion (icp/projective_icp.h).
+void AddProjectiveIcpOptions(OptionManager* options, ProjectiveIcpOptions* icp);
+// Fusion.*: surfel merging, removal and output (icp/surfel_map.h).
+void AddSurfelFusionOptions(OptionManager* options, SurfelFusionOptions* fusion);
+// Fusion.*: RGB-D preprocessing and the tracking target (icp/rgbd_fusion.h).
+void AddRgbdFusionOptions(OptionManager* options, RgbdFusionOptions* rgbd);
 
 // Lio.*, plus Map.* (AddVoxelMapOptions) and Init.* (AddImuInitializerOptions).
 void AddLioOptions(OptionManager* options, LioOptions* lio);

@@ -39,7 +39,7 @@ const OptionInfo* FindOption(const std::vector<OptionInfo>& infos,
 // Options whose bound is only reachable together with another option
 // (OptionManager::RequireLess): at their lower bound the relation fails.
 const std::set<std::string> kRelationBound = {
-    "Bayesian.num_iterations", "Lio.max_range", "Map.voxel_size"};
+    "Bayesian.num_iterations", "Lio.max_range", "Map.voxel_size", "Fusion.max_depth_m"};
 
 // The values at the bounds, just inside (inclusive: the bound; exclusive: the
 // next integer / double inside).
@@ -107,6 +107,12 @@ TEST(OptionSections, IcpRangesAgreeWithCheck) {
   ExpectRangesAgreeWithCheck<NormalOptions>(AddNormalOptions);
   ExpectRangesAgreeWithCheck<SgldOptions>(AddSgldOptions);
   ExpectRangesAgreeWithCheck<BayesianIcpOptions>(AddBayesianIcpOptions);
+}
+
+TEST(OptionSections, FusionRangesAgreeWithCheck) {
+  ExpectRangesAgreeWithCheck<ProjectiveIcpOptions>(AddProjectiveIcpOptions);
+  ExpectRangesAgreeWithCheck<SurfelFusionOptions>(AddSurfelFusionOptions);
+  ExpectRangesAgreeWithCheck<RgbdFusionOptions>(AddRgbdFusionOptions);
 }
 
 TEST(OptionSections, DatabaseImporterRangesAgreeWithCheck) {

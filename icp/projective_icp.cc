@@ -1,0 +1,289 @@
+#include "icp/projective_icp.h"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+
+#include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
+#include <fmt/format.h>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include "core/errors.h"
+#include "core/option_check.h"
+
+namespace lisfm {
+
+namespace {
+
+constexpr double kDegToRad = M_PI / 180.0;
+
+// Sums of one image row: the upper triangle of sum w A^T A (21), sum w A^T b (6),
+// sum w b^2, sum b^2, count, and the inlier points' sum and squared norms (for L).
+struct RowSums {
+  std::array<double, 21> h{};
+  std::array<double, 6> g{};
+  double weighted_sq = 0, sq = 0;
+  Eigen::Vector3d point_sum = Eigen::Vector3d::Zero();
+  double point_sq = 0;
+  size_t count = 0;
+  void Clear() { *this = RowSums(); }
+  void Add(const RowSums& o) {
+    for (int i = 0; i < 21; ++i) h[i] += o.h[i];
+    for (int i = 0; i < 6; ++i) g[i] += o.g[i];
+    weighted_sq += o.weighted_sq;
+    sq += o.sq;
+    point_sum += o.point_sum;
+    point_sq += o.point_sq;
+    count += o.count;
+  }
+};
+
+void CheckMap(const VertexNormalMap& map, const char* what) {
+  const size_t n = static_cast<size_t>(std::max(map.width, 0)) * std::max(map.height, 0);
+  if (map.width <= 0 || map.height <= 0 || map.vertices.size() != n || map.normals.size() != n) {
+    throw InputError(what, "",
+                     fmt::format("expected {}x{} = {} vertices and normals, found {} and {}",
+                                 map.width, map.height, n, map.vertices.size(),
+                                 map.normals.size()));
+  }
+}
+
+}  // namespace
+
+void VertexNormalMap::Resize(int w, int h) {
+  width = w;
+  height = h;
+  const size_t n = static_cast<size_t>(w) * static_cast<size_t>(h);
+  vertices.resize(n);
+  normals.resize(n);
+}
+
+size_t VertexNormalMap::NumValid() const {
+  size_t n = 0;
+  for (size_t i = 0; i < normals.size(); ++i) n += Valid(i) ? 1 : 0;
+  return n;
+}
+
+void ComputeVertexNormalMap(const std::vector<float>& depth_m,
+                            const PinholeIntrinsics& K,
+                            double min_depth_m,
+                            double max_depth_m,
+                            double max_depth_jump,
+                            VertexNormalMap* out) {
+  const int w = K.width, h = K.height;
+  THROW_CHECK_EQ(depth_m.size(), static_cast<size_t>(w) * static_cast<size_t>(h));
+  THROW_CHECK(max_depth_jump > 0);
+  out->Resize(w, h);
+  const float zmin = static_cast<float>(min_depth_m), zmax = static_cast<float>(max_depth_m);
+  const float fx_inv = static_cast<float>(1.0 / K.fx), fy_inv = static_cast<float>(1.0 / K.fy);
+  const float cx = static_cast<float>(K.cx), cy = static_cast<float>(K.cy);
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  tbb::parallel_for(0, h, [&](int v) {
+    for (int u = 0; u < w; ++u) {
+      const size_t i = static_cast<size_t>(v) * w + u;
+      const float z = depth_m[i];
+      out->vertices[i] = (z >= zmin && z <= zmax && std::isfinite(z))
+                             ? Eigen::Vector3f((u - cx) * fx_inv * z, (v - cy) * fy_inv * z, z)
+                             : Eigen::Vector3f(nan, nan, 0.f);
+    }
+  });
+  const float jump = static_cast<float>(max_depth_jump);
+  tbb::parallel_for(0, h, [&](int v) {
+    for (int u = 0; u < w; ++u) {
+      const size_t i = static_cast<size_t>(v) * w + u;
+      Eigen::Vector3f& n = out->normals[i];
+      n.setZero();
+      if (u == 0 || v == 0 || u + 1 == w || v + 1 == h) continue;
+      const float z = out->vertices[i].z();
+      if (!(z > 0)) continue;
+      const float limit = jump * z;
+      bool ok = true;
+      for (const size_t j : {i - 1, i + 1, i - w, i + w}) {
+        const float zj = out->vertices[j].z();
+        ok = ok && zj > 0 && std::abs(zj - z) <= limit;
+      }
+      if (!ok) continue;
+      const Eigen::Vector3f du = out->vertices[i + 1] - out->vertices[i - 1];
+      const Eigen::Vector3f dv = out->vertices[i + w] - out->vertices[i - w];
+      Eigen::Vector3f c = du.cross(dv);
+      const float norm = c.norm();
+      if (!(norm > 0)) continue;
+      c /= norm;
+      if (c.dot(out->vertices[i]) > 0) c = -c;
+      n = c;
+    }
+  });
+}
+
+bool ProjectiveIcpOptions::Check() const {
+  CHECK_OPTION_MSG(num_levels, num_levels >= 1 && num_levels <= 5, "in [1, 5]");
+  CHECK_OPTION_GE(max_iterations_per_level, 1);
+  CHECK_OPTION_GT(max_correspondence_distance_m, 0.0);
+  CHECK_OPTION_MSG(max_normal_angle_deg, max_normal_angle_deg > 0 && max_normal_angle_deg <= 180,
+                   "in (0, 180]");
+  CHECK_OPTION_GE(huber_threshold_m, 0.0);
+  CHECK_OPTION_GE(convergence_rotation_rad, 0.0);
+  CHECK_OPTION_GE(convergence_translation_m, 0.0);
+  CHECK_OPTION_GE(min_inliers, 6);
+  CHECK_OPTION_GE(degeneracy_threshold, 0.0);
+  return true;
+}
+
+double ProjectivePointToPlane(const Eigen::Vector3d& p,
+                              const Eigen::Vector3d& q,
+                              const Eigen::Vector3d& n,
+                              Eigen::Matrix<double, 1, 6>* a) {
+  // n^T (-[p]x omega) = n . (omega x p) = omega . (p x n).
+  a->leftCols<3>() = p.cross(n).transpose();
+  a->rightCols<3>() = n.transpose();
+  return n.dot(p - q);
+}
+
+ProjectiveIcpResult RegisterProjective(const VertexNormalMap& source,
+                                       const VertexNormalMap& target,
+                                       const PinholeIntrinsics& K,
+                                       const SE3& initial_target_from_source,
+                                       const ProjectiveIcpOptions& options) {
+  THROW_CHECK_OPTIONS(options);
+  CheckMap(source, "source vertex map");
+  CheckMap(target, "target vertex map");
+  if (!(K.fx > 0 && K.fy > 0) || K.width != target.width || K.height != target.height) {
+    throw InputError("target intrinsics", "",
+                     fmt::format("expected fx, fy > 0 and {}x{} pixels, found fx={} fy={} {}x{}",
+                                 target.width, target.height, K.fx, K.fy, K.width, K.height));
+  }
+  const float min_cos = static_cast<float>(std::cos(options.max_normal_angle_deg * kDegToRad));
+  const double huber = options.huber_threshold_m;
+  const float fx = static_cast<float>(K.fx), fy = static_cast<float>(K.fy);
+  const float cx = static_cast<float>(K.cx), cy = static_cast<float>(K.cy);
+  const int tw = target.width, th = target.height;
+
+  std::vector<RowSums> rows(static_cast<size_t>(source.height));
+  SE3 T = initial_target_from_source;
+  ProjectiveIcpResult result;
+  RowSums total;
+  Mat6 last_h = Mat6::Zero();
+  bool small_step = false;
+
+  for (int level = options.num_levels - 1; level >= 0; --level) {
+    const int stride = 1 << level;
+    const int num_rows = (source.height + stride - 1) / stride;
+    const double max_distance_m = options.max_correspondence_distance_m * stride;
+    const float max_sq = static_cast<float>(max_distance_m * max_distance_m);
+    small_step = false;
+    for (int it = 0; it < options.max_iterations_per_level; ++it) {
+      const Eigen::Matrix3f R = T.RotationMatrix().cast<float>();
+      const Eigen::Vector3f t = T.translation().cast<float>();
+      tbb::parallel_for(tbb::blocked_range<int>(0, num_rows, 8), [&](const tbb::blocked_range<int>& r) {
+        Eigen::Matrix<double, 1, 6> a;
+        for (int row = r.begin(); row != r.end(); ++row) {
+          RowSums& s = rows[row];
+          s.Clear();
+          const int v = row * stride;
+          for (int u = 0; u < source.width; u += stride) {
+            const size_t i = static_cast<size_t>(v) * source.width + u;
+            if (!source.Valid(i)) continue;
+            const Eigen::Vector3f p = R * source.vertices[i] + t;
+            if (!(p.z() > 0)) continue;
+            const int tu = static_cast<int>(std::lround(fx * p.x() / p.z() + cx));
+            const int tv = static_cast<int>(std::lround(fy * p.y() / p.z() + cy));
+            if (tu < 0 || tv < 0 || tu >= tw || tv >= th) continue;
+            const size_t j = static_cast<size_t>(tv) * tw + tu;
+            if (!target.Valid(j)) continue;
+            const Eigen::Vector3f& q = target.vertices[j];
+            if ((p - q).squaredNorm() >= max_sq) continue;
+            const Eigen::Vector3f& n = target.normals[j];
+            if ((R * source.normals[i]).dot(n) < min_cos) continue;
+            const Eigen::Vector3d pd = p.cast<double>();
+            const double b = ProjectivePointToPlane(pd, q.cast<double>(), n.cast<double>(), &a);
+            const double ab = std::abs(b);
+            const double w = (huber > 0 && ab > huber) ? huber / ab : 1.0;
+            int k = 0;
+            for (int x = 0; x < 6; ++x) {
+              const double wa = w * a(x);
+              for (int y = x; y < 6; ++y) s.h[k++] += wa * a(y);
+              s.g[x] += wa * b;
+            }
+            s.weighted_sq += w * b * b;
+            s.sq += b * b;
+            s.point_sum += pd;
+            s.point_sq += pd.squaredNorm();
+            ++s.count;
+          }
+        }
+      });
+      total.Clear();
+      for (int row = 0; row < num_rows; ++row) total.Add(rows[row]);
+      ++result.iterations;
+      if (total.count < static_cast<size_t>(options.min_inliers)) break;
+      Mat6 H;
+      Vec6 g;
+      int k = 0;
+      for (int x = 0; x < 6; ++x) {
+        for (int y = x; y < 6; ++y) H(x, y) = H(y, x) = total.h[k++];
+        g(x) = total.g[x];
+      }
+      // Tiny Levenberg damping (1e-9 of the mean diagonal): keeps unobservable
+      // directions finite without moving observable ones.
+      Mat6 damped = H;
+      damped.diagonal().array() += 1e-9 * H.trace() / 6.0 + 1e-12;
+      const Vec6 xi = -damped.llt().solve(g);
+      if (!xi.allFinite()) break;
+      T = SE3(so3::Exp(xi.head<3>()), xi.tail<3>()) * T;
+      last_h = H;
+      small_step = xi.head<3>().norm() < options.convergence_rotation_rad &&
+                   xi.tail<3>().norm() < options.convergence_translation_m;
+      if (small_step) break;
+    }
+  }
+  result.target_from_source = T;
+  result.num_inliers = total.count;
+  double length_m = 1.0;
+  if (total.count > 0) {
+    result.rmse_m = std::sqrt(total.sq / total.count);
+    const Eigen::Vector3d mean = total.point_sum / total.count;
+    length_m = std::sqrt(std::max(total.point_sq / total.count - mean.squaredNorm(), 1e-12));
+  }
+  // Right perturbation: T Exp(xi_r) = Exp(Ad(T) xi_r) T, so J = A Ad(T) and
+  // H_right = Ad^T H_left Ad.
+  const Mat6 adjoint = T.Adjoint();
+  const Mat6 h_right = adjoint.transpose() * last_h * adjoint;
+  const double sigma2 =
+      total.count > 6 ? std::max(total.weighted_sq / (total.count - 6.0), 1e-12) : 1.0;
+  result.information = h_right / sigma2;
+  // Degeneracy as in RegisterPointToPlane: rotation columns scale with distance,
+  // so compare eigenvalues of D H D, D = diag(1/L I3, I3); the translation block
+  // (normals' spread) against the threshold, the scaled 6x6 against a tenth of it.
+  Vec6 d;
+  d << Eigen::Vector3d::Constant(1.0 / length_m), Eigen::Vector3d::Ones();
+  const Mat6 scaled = d.asDiagonal() * h_right * d.asDiagonal();
+  result.scaled_eigenvalues = Eigen::SelfAdjointEigenSolver<Mat6>(scaled).eigenvalues();
+  const double max_eig = result.scaled_eigenvalues(5);
+  const Eigen::Vector3d trans_eig =
+      Eigen::SelfAdjointEigenSolver<Mat3>(h_right.bottomRightCorner<3, 3>()).eigenvalues();
+  const double trans_ratio = trans_eig(2) > 0 ? trans_eig(0) / trans_eig(2) : 0.0;
+  const double full_ratio = max_eig > 0 ? result.scaled_eigenvalues(0) / max_eig : 0.0;
+  result.degenerate = !(max_eig > 0) || trans_ratio < options.degeneracy_threshold ||
+                      full_ratio < 0.1 * options.degeneracy_threshold;
+  const bool enough = total.count >= static_cast<size_t>(options.min_inliers);
+  if (!enough) {
+    result.message = fmt::format("too few correspondences: {} < min_inliers {}", total.count,
+                                 options.min_inliers);
+  } else if (result.degenerate) {
+    result.message = fmt::format(
+        "degenerate geometry: Hessian eigenvalue ratios {:.2e} (translation) / {:.2e} (scaled, "
+        "all) below {:.1e} / {:.1e}",
+        trans_ratio, full_ratio, options.degeneracy_threshold, 0.1 * options.degeneracy_threshold);
+  } else if (!small_step) {
+    result.message = fmt::format("no convergence within {} iterations at the finest level",
+                                 options.max_iterations_per_level);
+  } else {
+    result.message = "converged";
+  }
+  result.converged = small_step && enough && !result.degenerate;
+  return result;
+}
+
+}  // namespace lisfm

@@ -1,0 +1,93 @@
+// Dense RGB-D SLAM with point-based fusion: per frame, preprocess (downsample,
+// optional bilateral filter, depth range, vertex and normal maps), track frame to
+// model (RegisterProjective against the model rendered at the previous pose) or
+// take a given pose, then fuse into a SurfelMap.
+//
+// Frames: a depth image is z along the optical axis (m) on the pixel grid of
+// `intrinsics` (full resolution); poses are world_from_camera. With tracking, the
+// first frame's pose is the one passed to the first AddFrame (identity if none) and
+// later poses chain the ICP estimates.
+//
+// Tracking: the model is rendered (index map, splat radius model_splat_px) at the
+// previous pose; the initial guess is the previous relative motion (constant
+// velocity). The ICP estimate is used when it has at least min_inliers matches;
+// otherwise the frame keeps the prediction and FrameResult::tracked is false.
+//
+// Threads: TBB inside each stage; not thread-safe itself. Results do not depend
+// on the thread count.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <optional>
+#include <vector>
+
+#include "core/geometry.h"
+#include "icp/projective_icp.h"
+#include "icp/surfel_map.h"
+
+namespace lisfm {
+
+struct RgbdFusionOptions {
+  int downsample_factor = 2;         // keep every k-th pixel in both directions (1..8)
+  double min_depth_m = 0.1;          // depths below are invalid (m)
+  double max_depth_m = 4.0;          // depths above are invalid (m)
+  double max_depth_jump = 0.05;      // no normal across a neighbour depth step above this fraction of z
+  double max_incidence_deg = 80.0;   // drop pixels seen more obliquely (normal vs ray, deg)
+  bool bilateral_filter = false;     // bilateral filter of the (downsampled) depth
+  double bilateral_sigma_px = 1.5;   // spatial sigma (pixels of the downsampled image)
+  double bilateral_sigma_depth_m = 0.02;  // range sigma (m)
+  int model_splat_px = 1;            // tracking target: surfels cover up to this many pixels (0..3)
+  bool Check() const;
+};
+
+struct RgbdFrameResult {
+  SE3 world_from_camera;
+  bool tracked = false;       // pose from ICP (false: given pose, first frame, or ICP failed)
+  ProjectiveIcpResult icp;    // when tracking ran
+  FuseStats fuse;
+  double preprocess_ms = 0, track_ms = 0, fuse_ms = 0;  // wall-clock per stage (ms)
+};
+
+class RgbdFusion {
+ public:
+  // full_intrinsics: the input images' pinhole model. Throws InternalError for
+  // bad options, InputError for intrinsics that do not describe an image.
+  RgbdFusion(const PinholeIntrinsics& full_intrinsics,
+             const RgbdFusionOptions& options,
+             const ProjectiveIcpOptions& icp_options,
+             const SurfelFusionOptions& fusion_options);
+
+  // Fuses one frame. depth_m: full-resolution depth (m, 0 = invalid); rgb: RGB bytes
+  // (3 per pixel, row-major) or empty. world_from_camera: the frame's pose, or
+  // nullopt to track (then it is also the first frame's pose when given there).
+  // Throws InputError when the image sizes do not match the intrinsics.
+  RgbdFrameResult AddFrame(const std::vector<float>& depth_m,
+                           const std::vector<uint8_t>& rgb,
+                           const std::optional<SE3>& world_from_camera);
+
+  const SurfelMap& map() const { return map_; }
+  // Intrinsics of the downsampled frames the map is built from.
+  const PinholeIntrinsics& intrinsics() const { return intrinsics_; }
+  int num_frames() const { return num_frames_; }
+  // Valid pixels (vertex + normal) over all frames so far.
+  size_t num_input_points() const { return num_input_points_; }
+
+ private:
+  void Preprocess(const std::vector<float>& depth_m, const std::vector<uint8_t>& rgb);
+
+  PinholeIntrinsics full_;
+  PinholeIntrinsics intrinsics_;
+  RgbdFusionOptions options_;
+  ProjectiveIcpOptions icp_options_;
+  SurfelMap map_;
+  FusionFrame frame_;
+  std::vector<float> depth_;
+  std::vector<float> filtered_;
+  VertexNormalMap model_;  // the model rendered at the previous pose
+  SE3 previous_, previous_motion_;
+  int num_frames_ = 0;
+  size_t num_input_points_ = 0;
+};
+
+}  // namespace lisfm

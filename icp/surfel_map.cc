@@ -1,0 +1,299 @@
+#include "icp/surfel_map.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <limits>
+
+#include <fmt/format.h>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include "core/errors.h"
+#include "core/option_check.h"
+
+namespace lisfm {
+
+namespace {
+
+constexpr double kDegToRad = M_PI / 180.0;
+constexpr uint64_t kEmptyKey = ~uint64_t{0};
+
+// z-buffer key: the depth's bits (positive floats order like their bit patterns)
+// above the surfel index, so that the atomic minimum keeps the nearest surfel and,
+// at equal depth, the lower index.
+uint64_t Key(float z, uint32_t index) {
+  uint32_t bits;
+  std::memcpy(&bits, &z, sizeof(bits));
+  return (static_cast<uint64_t>(bits) << 32) | index;
+}
+
+void AtomicMin(std::atomic<uint64_t>* a, uint64_t value) {
+  uint64_t current = a->load(std::memory_order_relaxed);
+  while (value < current &&
+         !a->compare_exchange_weak(current, value, std::memory_order_relaxed)) {
+  }
+}
+
+}  // namespace
+
+bool SurfelFusionOptions::Check() const {
+  CHECK_OPTION_GT(max_merge_distance_m, 0.0);
+  CHECK_OPTION_MSG(max_merge_angle_deg, max_merge_angle_deg > 0 && max_merge_angle_deg <= 180,
+                   "in (0, 180]");
+  CHECK_OPTION_MSG(association_radius_px, association_radius_px >= 0 && association_radius_px <= 3,
+                   "in [0, 3]");
+  CHECK_OPTION_GE(unstable_age_frames, 0);
+  CHECK_OPTION_GE(unstable_min_confidence, 0.0);
+  CHECK_OPTION_GE(output_min_confidence, 0.0);
+  return true;
+}
+
+SurfelMap::SurfelMap(const SurfelFusionOptions& options) : options_(options) {
+  THROW_CHECK_OPTIONS(options_);
+}
+
+size_t SurfelMap::NumStable() const {
+  size_t n = 0;
+  for (const Surfel& s : surfels_) n += Stable(s) ? 1 : 0;
+  return n;
+}
+
+void SurfelMap::RenderIndexMap(const SE3& world_from_camera,
+                               const PinholeIntrinsics& K,
+                               double min_confidence,
+                               int splat,
+                               std::vector<uint32_t>* index_map) const {
+  THROW_CHECK(K.width > 0 && K.height > 0 && K.fx > 0 && K.fy > 0);
+  THROW_CHECK(splat >= 0);
+  const size_t num_pixels = static_cast<size_t>(K.width) * static_cast<size_t>(K.height);
+  if (zbuffer_size_ < num_pixels) {
+    zbuffer_.reset(new std::atomic<uint64_t>[num_pixels]);
+    zbuffer_size_ = num_pixels;
+  }
+  std::atomic<uint64_t>* zb = zbuffer_.get();
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, num_pixels, 4096),
+                    [&](const tbb::blocked_range<size_t>& r) {
+                      for (size_t i = r.begin(); i != r.end(); ++i) {
+                        zb[i].store(kEmptyKey, std::memory_order_relaxed);
+                      }
+                    });
+  const SE3 camera_from_world = world_from_camera.Inverse();
+  const Eigen::Matrix3f R = camera_from_world.RotationMatrix().cast<float>();
+  const Eigen::Vector3f t = camera_from_world.translation().cast<float>();
+  const float fx = static_cast<float>(K.fx), fy = static_cast<float>(K.fy);
+  const float cx = static_cast<float>(K.cx), cy = static_cast<float>(K.cy);
+  const float min_conf = static_cast<float>(min_confidence);
+  const int w = K.width, h = K.height;
+  tbb::parallel_for(
+      tbb::blocked_range<size_t>(0, surfels_.size(), 8192), [&](const tbb::blocked_range<size_t>& r) {
+        for (size_t i = r.begin(); i != r.end(); ++i) {
+          const Surfel& s = surfels_[i];
+          if (s.confidence < min_conf) continue;
+          const Eigen::Vector3f p = R * s.position + t;
+          if (!(p.z() > 0)) continue;
+          if ((R * s.normal).dot(p) > 0) continue;  // facing away from the camera
+          const float inv_z = 1.f / p.z();
+          // Nearest pixel: floor(x + 0.5); far outside the image is skipped before the cast.
+          const float uf = fx * p.x() * inv_z + cx + 0.5f, vf = fy * p.y() * inv_z + cy + 0.5f;
+          if (!(uf >= -splat && vf >= -splat && uf < w + splat && vf < h + splat)) continue;
+          const int u = static_cast<int>(std::floor(uf)), v = static_cast<int>(std::floor(vf));
+          const uint64_t key = Key(p.z(), static_cast<uint32_t>(i));
+          if (splat == 0) {
+            if (u < 0 || v < 0 || u >= w || v >= h) continue;
+            AtomicMin(&zb[static_cast<size_t>(v) * w + u], key);
+            continue;
+          }
+          const float radius_px = s.radius_m * fx * inv_z;
+          const int reach = std::min(splat, static_cast<int>(radius_px));
+          const float r2 = std::max(radius_px * radius_px, 0.25f);
+          for (int dv = -reach; dv <= reach; ++dv) {
+            const int vv = v + dv;
+            if (vv < 0 || vv >= h) continue;
+            for (int du = -reach; du <= reach; ++du) {
+              const int uu = u + du;
+              if (uu < 0 || uu >= w) continue;
+              if (static_cast<float>(du * du + dv * dv) > r2 && (du != 0 || dv != 0)) continue;
+              AtomicMin(&zb[static_cast<size_t>(vv) * w + uu], key);
+            }
+          }
+        }
+      });
+  index_map->resize(num_pixels);
+  uint32_t* out = index_map->data();
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, num_pixels, 4096),
+                    [&](const tbb::blocked_range<size_t>& r) {
+                      for (size_t i = r.begin(); i != r.end(); ++i) {
+                        const uint64_t key = zb[i].load(std::memory_order_relaxed);
+                        out[i] = key == kEmptyKey ? kNoSurfel : static_cast<uint32_t>(key);
+                      }
+                    });
+}
+
+void SurfelMap::RenderVertexNormalMap(const SE3& world_from_camera,
+                                      const PinholeIntrinsics& K,
+                                      double min_confidence,
+                                      int splat,
+                                      VertexNormalMap* out) const {
+  std::vector<uint32_t> index_map;
+  RenderIndexMap(world_from_camera, K, min_confidence, splat, &index_map);
+  out->Resize(K.width, K.height);
+  const SE3 camera_from_world = world_from_camera.Inverse();
+  const Eigen::Matrix3f R = camera_from_world.RotationMatrix().cast<float>();
+  const Eigen::Vector3f t = camera_from_world.translation().cast<float>();
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  tbb::parallel_for(size_t{0}, index_map.size(), [&](size_t i) {
+    const uint32_t s = index_map[i];
+    if (s == kNoSurfel) {
+      out->vertices[i] = Eigen::Vector3f(nan, nan, 0.f);
+      out->normals[i].setZero();
+    } else {
+      out->vertices[i] = R * surfels_[s].position + t;
+      out->normals[i] = R * surfels_[s].normal;
+    }
+  });
+}
+
+FuseStats SurfelMap::Fuse(const FusionFrame& frame, const SE3& world_from_camera, int frame_index) {
+  const PinholeIntrinsics& K = frame.intrinsics;
+  const size_t num_pixels = static_cast<size_t>(std::max(K.width, 0)) * std::max(K.height, 0);
+  if (num_pixels == 0 || frame.map.width != K.width || frame.map.height != K.height ||
+      frame.map.vertices.size() != num_pixels || frame.map.normals.size() != num_pixels ||
+      (!frame.colors.empty() && frame.colors.size() != num_pixels)) {
+    throw InputError("fusion frame", fmt::format("frame {}", frame_index),
+                     fmt::format("expected {}x{} vertices, normals and colours, found {}, {} and {}",
+                                 K.width, K.height, frame.map.vertices.size(),
+                                 frame.map.normals.size(), frame.colors.size()));
+  }
+  FuseStats stats;
+  RenderIndexMap(world_from_camera, K, 0.0, 0, &index_map_);
+  match_.resize(num_pixels);
+  const Eigen::Matrix3f R = world_from_camera.RotationMatrix().cast<float>();
+  const Eigen::Vector3f t = world_from_camera.translation().cast<float>();
+  const float max_sq =
+      static_cast<float>(options_.max_merge_distance_m * options_.max_merge_distance_m);
+  const float min_cos = static_cast<float>(std::cos(options_.max_merge_angle_deg * kDegToRad));
+  const int radius = options_.association_radius_px;
+  const int w = K.width, h = K.height;
+  const VertexNormalMap& map = frame.map;
+  const float f = static_cast<float>(0.5 * (K.fx + K.fy));
+  // Radius of the observation of pixel i (header comment).
+  auto observed_radius = [&](size_t i) {
+    const Eigen::Vector3f& q = map.vertices[i];
+    const float cos_a = std::max(std::abs(map.normals[i].dot(q)) / q.norm(), 0.2f);
+    return 0.70710678f * q.z() / (f * cos_a);
+  };
+  // The rendered surfels in pixel order (one gather), so that the window search
+  // below reads neighbouring pixels instead of scattered surfels.
+  rendered_.resize(num_pixels);
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, num_pixels, 4096),
+                    [&](const tbb::blocked_range<size_t>& r) {
+                      for (size_t i = r.begin(); i != r.end(); ++i) {
+                        const uint32_t s = index_map_[i];
+                        RenderedSurfel& out = rendered_[i];
+                        out.index = s;
+                        if (s == kNoSurfel) continue;
+                        out.position = surfels_[s].position;
+                        out.normal = surfels_[s].normal;
+                        out.radius_m = surfels_[s].radius_m;
+                      }
+                    });
+  // 2. Association (parallel over rows; each pixel reads the rendered surfels only).
+  tbb::parallel_for(0, h, [&](int v) {
+    for (int u = 0; u < w; ++u) {
+      const size_t i = static_cast<size_t>(v) * w + u;
+      match_[i] = kNoSurfel;
+      if (!map.Valid(i)) continue;
+      const Eigen::Vector3f q = R * map.vertices[i] + t;
+      const Eigen::Vector3f n = R * map.normals[i];
+      const float r_obs = observed_radius(i);
+      auto compatible = [&](const RenderedSurfel& surfel, float* d2) {
+        if (surfel.index == kNoSurfel) return false;
+        const Eigen::Vector3f d = surfel.position - q;
+        const float along = surfel.normal.dot(d);
+        *d2 = d.squaredNorm();
+        const float reach = surfel.radius_m + r_obs;
+        return along * along < max_sq && *d2 - along * along < reach * reach &&
+               surfel.normal.dot(n) >= min_cos;
+      };
+      float best_d2;
+      if (compatible(rendered_[i], &best_d2)) {
+        match_[i] = rendered_[i].index;
+        continue;
+      }
+      best_d2 = std::numeric_limits<float>::infinity();
+      for (int dv = -radius; dv <= radius; ++dv) {
+        const int vv = v + dv;
+        if (vv < 0 || vv >= h) continue;
+        for (int du = -radius; du <= radius; ++du) {
+          const int uu = u + du;
+          if (uu < 0 || uu >= w || (du == 0 && dv == 0)) continue;
+          const RenderedSurfel& candidate = rendered_[static_cast<size_t>(vv) * w + uu];
+          float d2;
+          if (compatible(candidate, &d2) && d2 < best_d2) {
+            best_d2 = d2;
+            match_[i] = candidate.index;
+          }
+        }
+      }
+    }
+  });
+  // 3.-4. Merge and add, in pixel order.
+  for (size_t i = 0; i < num_pixels; ++i) {
+    if (!map.Valid(i)) continue;
+    ++stats.valid_pixels;
+    const Eigen::Vector3f& qc = map.vertices[i];
+    const Eigen::Vector3f& nc = map.normals[i];
+    const float radius_m = observed_radius(i);
+    const std::array<uint8_t, 3> color =
+        frame.colors.empty() ? std::array<uint8_t, 3>{128, 128, 128} : frame.colors[i];
+    const uint32_t m = match_[i];
+    if (m != kNoSurfel) {
+      Surfel& s = surfels_[m];
+      if (s.last_seen == frame_index) {
+        ++stats.skipped;
+        continue;
+      }
+      const float wgt = s.confidence, inv = 1.f / (wgt + 1.f);
+      s.position = (wgt * s.position + (R * qc + t)) * inv;
+      const Eigen::Vector3f n = wgt * s.normal + R * nc;
+      const float nn = n.norm();
+      if (nn > 0) s.normal = n / nn;
+      s.radius_m = (wgt * s.radius_m + radius_m) * inv;
+      for (int c = 0; c < 3; ++c) {
+        s.color[c] = static_cast<uint8_t>(std::lround((wgt * s.color[c] + color[c]) * inv));
+      }
+      s.confidence = wgt + 1.f;
+      s.last_seen = frame_index;
+      ++stats.merged;
+      continue;
+    }
+    Surfel s;
+    s.position = R * qc + t;
+    s.normal = R * nc;
+    s.radius_m = radius_m;
+    s.confidence = 1.f;
+    s.first_seen = s.last_seen = frame_index;
+    s.color = color;
+    surfels_.push_back(s);
+    ++stats.added;
+  }
+  // 5. Removal.
+  stats.removed = RemoveUnstable(frame_index);
+  return stats;
+}
+
+size_t SurfelMap::RemoveUnstable(int frame_index) {
+  if (options_.unstable_min_confidence <= 0) return 0;
+  const float min_conf = static_cast<float>(options_.unstable_min_confidence);
+  const int age = options_.unstable_age_frames;
+  const size_t before = surfels_.size();
+  surfels_.erase(std::remove_if(surfels_.begin(), surfels_.end(),
+                                [&](const Surfel& s) {
+                                  return frame_index - s.first_seen > age && s.confidence < min_conf;
+                                }),
+                 surfels_.end());
+  return before - surfels_.size();
+}
+
+}  // namespace lisfm
