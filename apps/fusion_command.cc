@@ -12,20 +12,21 @@
 //                          the fused model's normals (camera frame, RGB = 255 (n + 1) / 2)
 //                          rendered from the first and last camera poses
 //   config.yaml            the effective options
+#include <fmt/format.h>
+#include <tbb/parallel_invoke.h>
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstring>
+#include <exception>
 #include <fstream>
-#include <optional>
-#include <string>
-#include <vector>
-
-#include <fmt/format.h>
 #include <nlohmann/json.hpp>
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
-#include <tbb/parallel_invoke.h>
+#include <optional>
+#include <string>
+#include <vector>
 
 #include "apps/commands.h"
 #include "apps/option_sections.h"
@@ -60,10 +61,13 @@ std::vector<SE3> PosesFromTrajectory(const std::string& path,
     const TimestampNs t = sequence.frames[i].t_ns;
     const int k = trajectory.Nearest(t, 1000000);
     if (k < 0) {
-      throw InputError(path, "",
+      throw InputError(path,
+                       "",
                        fmt::format("expected a pose at the time of frame {} ({:.6f} s, within 1 "
                                    "ms), found none (the trajectory covers {:.6f} to {:.6f} s)",
-                                   i, NsToSeconds(t), NsToSeconds(trajectory.start_ns()),
+                                   i,
+                                   NsToSeconds(t),
+                                   NsToSeconds(trajectory.start_ns()),
                                    NsToSeconds(trajectory.end_ns())));
     }
     poses.push_back(trajectory[k].pose);
@@ -127,8 +131,8 @@ void WriteNormalMapPng(const std::string& path,
                        const SE3& world_from_camera,
                        const PinholeIntrinsics& intrinsics) {
   std::vector<uint32_t> index_map;
-  map.RenderIndexMap(world_from_camera, intrinsics, map.options().output_min_confidence, 3,
-                     &index_map);
+  map.RenderIndexMap(
+      world_from_camera, intrinsics, map.options().output_min_confidence, 3, &index_map);
   const Eigen::Matrix3f camera_from_world =
       world_from_camera.RotationMatrix().transpose().cast<float>();
   cv::Mat image(intrinsics.height, intrinsics.width, CV_8UC3, cv::Scalar(0, 0, 0));
@@ -159,29 +163,38 @@ int RunFusion(int argc, char** argv) {
   RgbdFusionOptions rgbd;
   ProjectiveIcpOptions icp;
   SurfelFusionOptions fusion;
-  options.AddRequiredString("input_path", &input_path,
+  options.AddRequiredString("input_path",
+                            &input_path,
                             "RGB-D sequence: lisfm sequence folder (rgbd0/), TUM RGB-D or "
                             "7-Scenes folder");
-  options.AddRequiredString("output_path", &output_path,
+  options.AddRequiredString("output_path",
+                            &output_path,
                             "output folder: trajectory.txt, surfels.ply, fusion_summary.json, "
                             "normals_{first,last}_camera.png, config.yaml");
-  options.AddChoice("mode", &mode, {"rgbd", "lidar"},
-                    "input kind (lidar: lio keyframes; not available yet)");
+  options.AddChoice(
+      "mode", &mode, {"rgbd", "lidar"}, "input kind (lidar: lio keyframes; not available yet)");
   options.AddString("lio_path", &lio_path, "--mode lidar: the lisfm lio output folder");
-  options.AddChoice("pose_source", &pose_source, {"icp", "groundtruth", "trajectory"},
+  options.AddChoice("pose_source",
+                    &pose_source,
+                    {"icp", "groundtruth", "trajectory"},
                     "camera poses: frame-to-model ICP, the data set's poses, or a TUM file");
-  options.AddString("trajectory_path", &trajectory_path,
+  options.AddString("trajectory_path",
+                    &trajectory_path,
                     "--pose_source trajectory: TUM file of world_from_camera with a pose at "
                     "every frame time");
-  options.AddChoice("layout", &layout, {"auto", "lisfm", "tum", "7scenes"},
+  options.AddChoice("layout",
+                    &layout,
+                    {"auto", "lisfm", "tum", "7scenes"},
                     "folder layout of --input_path (auto: detect)");
-  options.AddString("intrinsics_path", &intrinsics_path,
+  options.AddString("intrinsics_path",
+                    &intrinsics_path,
                     "intrinsics overriding the layout's (camera.yaml or 3x3 K text file)");
-  options.AddDouble("depth_units_per_m", &depth_units_per_m,
+  options.AddDouble("depth_units_per_m",
+                    &depth_units_per_m,
                     "depth image units per metre, overriding the layout's (0 = the layout's)",
                     OptionRange::AtLeast(0));
-  options.AddInt("max_frames", &max_frames, "fuse only the first N frames (0 = all)",
-                 OptionRange::AtLeast(0));
+  options.AddInt(
+      "max_frames", &max_frames, "fuse only the first N frames (0 = all)", OptionRange::AtLeast(0));
   AddRgbdFusionOptions(&options, &rgbd);
   AddSurfelFusionOptions(&options, &fusion);
   AddProjectiveIcpOptions(&options, &icp);
@@ -211,16 +224,25 @@ int RunFusion(int argc, char** argv) {
                                 : sequence.frames.size();
   std::vector<SE3> poses;
   if (pose_source == "groundtruth") poses = GivenPoses(sequence, num_frames);
-  if (pose_source == "trajectory") poses = PosesFromTrajectory(trajectory_path, sequence, num_frames);
+  if (pose_source == "trajectory")
+    poses = PosesFromTrajectory(trajectory_path, sequence, num_frames);
   const int factor = rgbd.downsample_factor;
   const RgbdIntrinsics di = DownsampleIntrinsics(sequence.intrinsics, factor);
   const PinholeIntrinsics intrinsics{di.fx, di.fy, di.cx, di.cy, di.width, di.height};
-  LogInfo("{} ({} layout): {} of {} frames, {}x{} -> {}x{} (downsample factor {}), depth scale "
-          "{} m/unit, poses: {}",
-          input_path, RgbdLayoutName(sequence.layout), num_frames, sequence.frames.size(),
-          sequence.intrinsics.width, sequence.intrinsics.height, intrinsics.width,
-          intrinsics.height, factor, sequence.depth_m_per_unit,
-          pose_source == "icp" ? "projective ICP" : pose_source);
+  LogInfo(
+      "{} ({} layout): {} of {} frames, {}x{} -> {}x{} (downsample factor {}), depth scale "
+      "{} m/unit, poses: {}",
+      input_path,
+      RgbdLayoutName(sequence.layout),
+      num_frames,
+      sequence.frames.size(),
+      sequence.intrinsics.width,
+      sequence.intrinsics.height,
+      intrinsics.width,
+      intrinsics.height,
+      factor,
+      sequence.depth_m_per_unit,
+      pose_source == "icp" ? "projective ICP" : pose_source);
 
   // The reader samples every factor-th pixel; the fusion takes the frames as they are.
   RgbdFusionOptions fusion_rgbd = rgbd;
@@ -238,14 +260,21 @@ int RunFusion(int argc, char** argv) {
   const auto t_loop = std::chrono::steady_clock::now();
   for (size_t i = 0; i < num_frames; ++i) {
     // Load frame i + 1 while frame i is fused (image decoding is the slow part of I/O).
+    // A loading error is kept and rethrown after both tasks: thrown inside
+    // parallel_invoke it would cancel the fusion's parallel loops half-way.
     RgbdImage next;
     double next_load_ms = 0;
+    std::exception_ptr load_error;
     RgbdFrameResult r;
     tbb::parallel_invoke(
         [&] {
           if (i + 1 >= num_frames) return;
           const auto t0 = std::chrono::steady_clock::now();
-          next = LoadRgbdFrame(sequence, i + 1, factor);
+          try {
+            next = LoadRgbdFrame(sequence, i + 1, factor);
+          } catch (...) {
+            load_error = std::current_exception();
+          }
           next_load_ms = 1e3 * Seconds(t0);
         },
         [&] {
@@ -256,6 +285,7 @@ int RunFusion(int argc, char** argv) {
           }
           r = system.AddFrame(current.depth_m, current.rgb, given);
         });
+    if (load_error) std::rethrow_exception(load_error);
     load_ms += next_load_ms;
     preprocess_ms += r.preprocess_ms;
     track_ms += r.track_ms;
@@ -310,34 +340,51 @@ int RunFusion(int argc, char** argv) {
                              {"surfels_removed", totals.removed}};
   summary["frames_not_tracked"] = untracked;
   summary["frames_icp_not_converged"] = not_converged;
-  summary["stage_ms"] = {{"load", load_ms},          {"preprocess", preprocess_ms},
-                         {"tracking", track_ms},     {"fusion", fuse_ms},
+  summary["stage_ms"] = {{"load", load_ms},
+                         {"preprocess", preprocess_ms},
+                         {"tracking", track_ms},
+                         {"fusion", fuse_ms},
                          {"loop_wall", 1e3 * loop_s}};
-  summary["stage_ms_per_frame"] = {
-      {"load", load_ms / num_frames},       {"preprocess", preprocess_ms / num_frames},
-      {"tracking", track_ms / num_frames},  {"fusion", fuse_ms / num_frames},
-      {"loop_wall", 1e3 * loop_s / num_frames}};
+  summary["stage_ms_per_frame"] = {{"load", load_ms / num_frames},
+                                   {"preprocess", preprocess_ms / num_frames},
+                                   {"tracking", track_ms / num_frames},
+                                   {"fusion", fuse_ms / num_frames},
+                                   {"loop_wall", 1e3 * loop_s / num_frames}};
   summary["tracking_fusion_frames_per_s"] = compute_ms > 0 ? 1e3 * num_frames / compute_ms : 0.0;
   summary["wall_frames_per_s"] = loop_s > 0 ? num_frames / loop_s : 0.0;
   WriteFileAtomically(output.File("fusion_summary.json"), summary.dump(2) + "\n");
   options.WriteConfig(output.File("config.yaml"));
   output.Commit();
   if (pose_source == "icp" && untracked > 0) {
-    LogWarning("fusion: {} of {} frames kept the constant-velocity prediction (too few ICP "
-               "matches)",
-               untracked, num_frames - 1);
+    LogWarning(
+        "fusion: {} of {} frames kept the initial guess of tracking (too few ICP "
+        "matches)",
+        untracked,
+        num_frames - 1);
   }
-  LogInfo("fusion: {} frames ({}x{}), {} surfels written (confidence >= {}; {} in the map, {} "
-          "bytes each, compression {:.2f} %), tracking + fusion {:.1f} frames/s ({:.1f} ms/frame: "
-          "preprocess {:.1f}, tracking {:.1f}, fusion {:.1f}), wall {:.1f} frames/s with "
-          "loading; writing {:.2f} s, total {:.1f} s; wrote {}/{{trajectory.txt, surfels.ply, "
-          "fusion_summary.json, normals_first_camera.png, normals_last_camera.png}}",
-          num_frames, intrinsics.width, intrinsics.height, stable, fusion.output_min_confidence,
-          map.size(), SurfelMap::BytesPerSurfel(), pixels > 0 ? 100.0 * stable / pixels : 0.0,
-          compute_ms > 0 ? 1e3 * num_frames / compute_ms : 0.0, compute_ms / num_frames,
-          preprocess_ms / num_frames, track_ms / num_frames, fuse_ms / num_frames,
-          loop_s > 0 ? num_frames / loop_s : 0.0, Seconds(t_write), Seconds(t_start),
-          output.final_path());
+  LogInfo(
+      "fusion: {} frames ({}x{}), {} surfels written (confidence >= {}; {} in the map, {} "
+      "bytes each, compression {:.2f} %), tracking + fusion {:.1f} frames/s ({:.1f} ms/frame: "
+      "preprocess {:.1f}, tracking {:.1f}, fusion {:.1f}), wall {:.1f} frames/s with "
+      "loading; writing {:.2f} s, total {:.1f} s; wrote {}/{{trajectory.txt, surfels.ply, "
+      "fusion_summary.json, normals_first_camera.png, normals_last_camera.png}}",
+      num_frames,
+      intrinsics.width,
+      intrinsics.height,
+      stable,
+      fusion.output_min_confidence,
+      map.size(),
+      SurfelMap::BytesPerSurfel(),
+      pixels > 0 ? 100.0 * stable / pixels : 0.0,
+      compute_ms > 0 ? 1e3 * num_frames / compute_ms : 0.0,
+      compute_ms / num_frames,
+      preprocess_ms / num_frames,
+      track_ms / num_frames,
+      fuse_ms / num_frames,
+      loop_s > 0 ? num_frames / loop_s : 0.0,
+      Seconds(t_write),
+      Seconds(t_start),
+      output.final_path());
   return 0;
 }
 

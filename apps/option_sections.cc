@@ -125,7 +125,7 @@ void AddProjectiveIcpOptions(OptionManager* options, ProjectiveIcpOptions* icp) 
                      &icp->convergence_translation_m, "... and translates less (m)",
                      R::AtLeast(0));
   options->AddInt("ProjectiveIcp.min_inliers", &icp->min_inliers,
-                  "fewer matches: the frame keeps the constant-velocity prediction",
+                  "fewer matches: the frame keeps the initial guess (Fusion.constant_velocity)",
                   R::AtLeast(6));
   options->AddDouble("ProjectiveIcp.degeneracy_threshold", &icp->degeneracy_threshold,
                      "min/max Hessian eigenvalue ratio below which the result is degenerate",
@@ -176,6 +176,9 @@ void AddRgbdFusionOptions(OptionManager* options, RgbdFusionOptions* rgbd) {
   options->AddInt("Fusion.model_splat_px", &rgbd->model_splat_px,
                   "tracking target: a surfel covers up to this many pixels around its own",
                   R::Between(0, 3));
+  options->AddBool("Fusion.constant_velocity", &rgbd->constant_velocity,
+                   "tracking starts from the previous motion applied again (0: from the "
+                   "previous pose)");
   options->AddStructCheck([rgbd] { return rgbd->Check(); });
 }
 

@@ -1,14 +1,14 @@
 #include "icp/projective_icp.h"
 
-#include <algorithm>
-#include <array>
-#include <cmath>
-
-#include <Eigen/Cholesky>
-#include <Eigen/Eigenvalues>
 #include <fmt/format.h>
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
+
+#include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
+#include <algorithm>
+#include <array>
+#include <cmath>
 
 #include "core/errors.h"
 #include "core/option_check.h"
@@ -43,9 +43,13 @@ struct RowSums {
 void CheckMap(const VertexNormalMap& map, const char* what) {
   const size_t n = static_cast<size_t>(std::max(map.width, 0)) * std::max(map.height, 0);
   if (map.width <= 0 || map.height <= 0 || map.vertices.size() != n || map.normals.size() != n) {
-    throw InputError(what, "",
+    throw InputError(what,
+                     "",
                      fmt::format("expected {}x{} = {} vertices and normals, found {} and {}",
-                                 map.width, map.height, n, map.vertices.size(),
+                                 map.width,
+                                 map.height,
+                                 n,
+                                 map.vertices.size(),
                                  map.normals.size()));
   }
 }
@@ -121,8 +125,8 @@ bool ProjectiveIcpOptions::Check() const {
   CHECK_OPTION_MSG(num_levels, num_levels >= 1 && num_levels <= 5, "in [1, 5]");
   CHECK_OPTION_GE(max_iterations_per_level, 1);
   CHECK_OPTION_GT(max_correspondence_distance_m, 0.0);
-  CHECK_OPTION_MSG(max_normal_angle_deg, max_normal_angle_deg > 0 && max_normal_angle_deg <= 180,
-                   "in (0, 180]");
+  CHECK_OPTION_MSG(
+      max_normal_angle_deg, max_normal_angle_deg > 0 && max_normal_angle_deg <= 180, "in (0, 180]");
   CHECK_OPTION_GE(huber_threshold_m, 0.0);
   CHECK_OPTION_GE(convergence_rotation_rad, 0.0);
   CHECK_OPTION_GE(convergence_translation_m, 0.0);
@@ -150,9 +154,15 @@ ProjectiveIcpResult RegisterProjective(const VertexNormalMap& source,
   CheckMap(source, "source vertex map");
   CheckMap(target, "target vertex map");
   if (!(K.fx > 0 && K.fy > 0) || K.width != target.width || K.height != target.height) {
-    throw InputError("target intrinsics", "",
+    throw InputError("target intrinsics",
+                     "",
                      fmt::format("expected fx, fy > 0 and {}x{} pixels, found fx={} fy={} {}x{}",
-                                 target.width, target.height, K.fx, K.fy, K.width, K.height));
+                                 target.width,
+                                 target.height,
+                                 K.fx,
+                                 K.fy,
+                                 K.width,
+                                 K.height));
   }
   const float min_cos = static_cast<float>(std::cos(options.max_normal_angle_deg * kDegToRad));
   const double huber = options.huber_threshold_m;
@@ -176,44 +186,48 @@ ProjectiveIcpResult RegisterProjective(const VertexNormalMap& source,
     for (int it = 0; it < options.max_iterations_per_level; ++it) {
       const Eigen::Matrix3f R = T.RotationMatrix().cast<float>();
       const Eigen::Vector3f t = T.translation().cast<float>();
-      tbb::parallel_for(tbb::blocked_range<int>(0, num_rows, 8), [&](const tbb::blocked_range<int>& r) {
-        Eigen::Matrix<double, 1, 6> a;
-        for (int row = r.begin(); row != r.end(); ++row) {
-          RowSums& s = rows[row];
-          s.Clear();
-          const int v = row * stride;
-          for (int u = 0; u < source.width; u += stride) {
-            const size_t i = static_cast<size_t>(v) * source.width + u;
-            if (!source.Valid(i)) continue;
-            const Eigen::Vector3f p = R * source.vertices[i] + t;
-            if (!(p.z() > 0)) continue;
-            const int tu = static_cast<int>(std::lround(fx * p.x() / p.z() + cx));
-            const int tv = static_cast<int>(std::lround(fy * p.y() / p.z() + cy));
-            if (tu < 0 || tv < 0 || tu >= tw || tv >= th) continue;
-            const size_t j = static_cast<size_t>(tv) * tw + tu;
-            if (!target.Valid(j)) continue;
-            const Eigen::Vector3f& q = target.vertices[j];
-            if ((p - q).squaredNorm() >= max_sq) continue;
-            const Eigen::Vector3f& n = target.normals[j];
-            if ((R * source.normals[i]).dot(n) < min_cos) continue;
-            const Eigen::Vector3d pd = p.cast<double>();
-            const double b = ProjectivePointToPlane(pd, q.cast<double>(), n.cast<double>(), &a);
-            const double ab = std::abs(b);
-            const double w = (huber > 0 && ab > huber) ? huber / ab : 1.0;
-            int k = 0;
-            for (int x = 0; x < 6; ++x) {
-              const double wa = w * a(x);
-              for (int y = x; y < 6; ++y) s.h[k++] += wa * a(y);
-              s.g[x] += wa * b;
+      tbb::parallel_for(
+          tbb::blocked_range<int>(0, num_rows, 8), [&](const tbb::blocked_range<int>& r) {
+            Eigen::Matrix<double, 1, 6> a;
+            for (int row = r.begin(); row != r.end(); ++row) {
+              RowSums& s = rows[row];
+              s.Clear();
+              const int v = row * stride;
+              for (int u = 0; u < source.width; u += stride) {
+                const size_t i = static_cast<size_t>(v) * source.width + u;
+                if (!source.Valid(i)) continue;
+                const Eigen::Vector3f p = R * source.vertices[i] + t;
+                if (!(p.z() > 0)) continue;
+                // Nearest pixel: floor(x + 0.5), range-checked before the cast.
+                const float inv_z = 1.f / p.z();
+                const float uf = fx * p.x() * inv_z + cx + 0.5f,
+                            vf = fy * p.y() * inv_z + cy + 0.5f;
+                if (!(uf >= 0.f && vf >= 0.f && uf < tw && vf < th)) continue;
+                const int tu = static_cast<int>(uf), tv = static_cast<int>(vf);
+                const size_t j = static_cast<size_t>(tv) * tw + tu;
+                if (!target.Valid(j)) continue;
+                const Eigen::Vector3f& q = target.vertices[j];
+                if ((p - q).squaredNorm() >= max_sq) continue;
+                const Eigen::Vector3f& n = target.normals[j];
+                if ((R * source.normals[i]).dot(n) < min_cos) continue;
+                const Eigen::Vector3d pd = p.cast<double>();
+                const double b = ProjectivePointToPlane(pd, q.cast<double>(), n.cast<double>(), &a);
+                const double ab = std::abs(b);
+                const double w = (huber > 0 && ab > huber) ? huber / ab : 1.0;
+                int k = 0;
+                for (int x = 0; x < 6; ++x) {
+                  const double wa = w * a(x);
+                  for (int y = x; y < 6; ++y) s.h[k++] += wa * a(y);
+                  s.g[x] += wa * b;
+                }
+                s.weighted_sq += w * b * b;
+                s.sq += b * b;
+                s.point_sum += pd;
+                s.point_sq += pd.squaredNorm();
+                ++s.count;
+              }
             }
-            s.weighted_sq += w * b * b;
-            s.sq += b * b;
-            s.point_sum += pd;
-            s.point_sq += pd.squaredNorm();
-            ++s.count;
-          }
-        }
-      });
+          });
       total.Clear();
       for (int row = 0; row < num_rows; ++row) total.Add(rows[row]);
       ++result.iterations;
@@ -225,11 +239,33 @@ ProjectiveIcpResult RegisterProjective(const VertexNormalMap& source,
         for (int y = x; y < 6; ++y) H(x, y) = H(y, x) = total.h[k++];
         g(x) = total.g[x];
       }
-      // Tiny Levenberg damping (1e-9 of the mean diagonal): keeps unobservable
-      // directions finite without moving observable ones.
-      Mat6 damped = H;
-      damped.diagonal().array() += 1e-9 * H.trace() / 6.0 + 1e-12;
-      const Vec6 xi = -damped.llt().solve(g);
+      // Directions the matches do not constrain (a corridor's axis, a wall's plane):
+      // eigenvalues of the scaled Hessian D H D (D = diag(1/L I3, I3), L the RMS
+      // range of the matches) below a tenth of degeneracy_threshold times the
+      // largest. There the step is zero, so the initial guess (the caller's motion
+      // prediction) is kept (solution remapping, Zhang et al. 2016); elsewhere the
+      // step is the Cholesky solution of the normal equations.
+      const double range_m = std::sqrt(std::max(total.point_sq / total.count, 1e-12));
+      Vec6 d;
+      d << Eigen::Vector3d::Constant(1.0 / range_m), Eigen::Vector3d::Ones();
+      const Eigen::SelfAdjointEigenSolver<Mat6> eig(d.asDiagonal() * H * d.asDiagonal());
+      const double min_eig = 0.1 * options.degeneracy_threshold * eig.eigenvalues()(5);
+      Vec6 xi;
+      if (eig.eigenvalues()(0) >= min_eig && eig.eigenvalues()(0) > 0) {
+        // Tiny Levenberg damping (1e-9 of the mean diagonal) against rounding.
+        Mat6 damped = H;
+        damped.diagonal().array() += 1e-9 * H.trace() / 6.0 + 1e-12;
+        xi = -damped.llt().solve(g);
+      } else {
+        const Vec6 rhs = eig.eigenvectors().transpose() * (-(d.asDiagonal() * g));
+        Vec6 scaled_step = Vec6::Zero();
+        for (int e = 0; e < 6; ++e) {
+          if (eig.eigenvalues()(e) >= min_eig && eig.eigenvalues()(e) > 0) {
+            scaled_step += eig.eigenvectors().col(e) * (rhs(e) / eig.eigenvalues()(e));
+          }
+        }
+        xi = d.asDiagonal() * scaled_step;
+      }
       if (!xi.allFinite()) break;
       T = SE3(so3::Exp(xi.head<3>()), xi.tail<3>()) * T;
       last_h = H;
@@ -269,13 +305,16 @@ ProjectiveIcpResult RegisterProjective(const VertexNormalMap& source,
                       full_ratio < 0.1 * options.degeneracy_threshold;
   const bool enough = total.count >= static_cast<size_t>(options.min_inliers);
   if (!enough) {
-    result.message = fmt::format("too few correspondences: {} < min_inliers {}", total.count,
-                                 options.min_inliers);
+    result.message = fmt::format(
+        "too few correspondences: {} < min_inliers {}", total.count, options.min_inliers);
   } else if (result.degenerate) {
     result.message = fmt::format(
         "degenerate geometry: Hessian eigenvalue ratios {:.2e} (translation) / {:.2e} (scaled, "
         "all) below {:.1e} / {:.1e}",
-        trans_ratio, full_ratio, options.degeneracy_threshold, 0.1 * options.degeneracy_threshold);
+        trans_ratio,
+        full_ratio,
+        options.degeneracy_threshold,
+        0.1 * options.degeneracy_threshold);
   } else if (!small_step) {
     result.message = fmt::format("no convergence within {} iterations at the finest level",
                                  options.max_iterations_per_level);

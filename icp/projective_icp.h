@@ -18,6 +18,9 @@
 // xi = [omega; dt] (rad, m). Each iteration solves the normal equations
 // (sum w A^T A) xi = -(sum w A^T b) by Cholesky (LLT with a tiny Levenberg damping)
 // and applies T <- (Exp(omega), dt) T. Weights w are Huber IRLS weights of b_i.
+// Unconstrained directions (scaled-Hessian eigenvalues below a tenth of
+// degeneracy_threshold times the largest; a corridor's axis) get no step, so the
+// initial guess is kept along them (solution remapping, Zhang et al. 2016).
 //
 // Coarse to fine: level l (l = num_levels-1 .. 0) uses every 2^l-th source pixel in
 // both directions and a distance threshold of 2^l d_thr (coarse levels pull in
@@ -70,25 +73,26 @@ void ComputeVertexNormalMap(const std::vector<float>& depth_m,
                             VertexNormalMap* out);
 
 struct ProjectiveIcpOptions {
-  int num_levels = 3;                          // pyramid levels (source strides 2^l), 1..5
-  int max_iterations_per_level = 10;           // Gauss-Newton iterations per level, >= 1
-  double max_correspondence_distance_m = 0.1;  // d_thr: reject |T p - q| above this (m; x 2^l at level l)
-  double max_normal_angle_deg = 30.0;          // theta_thr: reject normals further apart (deg)
-  double huber_threshold_m = 0.01;             // Huber IRLS scale on b_i (m; 0 = plain least squares)
-  double convergence_rotation_rad = 1e-5;      // a level ends when |omega| of a step is below (rad)
-  double convergence_translation_m = 1e-5;     // ... and |dt| is below (m)
-  int min_inliers = 100;                       // fewer matches: not converged
-  double degeneracy_threshold = 0.02;          // as IcpOptions::degeneracy_threshold
+  int num_levels = 3;                 // pyramid levels (source strides 2^l), 1..5
+  int max_iterations_per_level = 10;  // Gauss-Newton iterations per level, >= 1
+  double max_correspondence_distance_m =
+      0.1;                             // d_thr: reject |T p - q| above this (m; x 2^l at level l)
+  double max_normal_angle_deg = 30.0;  // theta_thr: reject normals further apart (deg)
+  double huber_threshold_m = 0.01;     // Huber IRLS scale on b_i (m; 0 = plain least squares)
+  double convergence_rotation_rad = 1e-5;   // a level ends when |omega| of a step is below (rad)
+  double convergence_translation_m = 1e-5;  // ... and |dt| is below (m)
+  int min_inliers = 100;                    // fewer matches: not converged
+  double degeneracy_threshold = 0.02;       // as IcpOptions::degeneracy_threshold
   bool Check() const;
 };
 
 struct ProjectiveIcpResult {
   SE3 target_from_source;
-  bool converged = false;   // last step small, enough inliers, not degenerate
-  bool degenerate = false;  // eigenvalue ratios below degeneracy_threshold (see above)
-  int iterations = 0;       // Gauss-Newton iterations over all levels
-  size_t num_inliers = 0;   // matches of the last iteration (finest level)
-  double rmse_m = 0;        // RMS point-to-plane residual of those matches (m)
+  bool converged = false;           // last step small, enough inliers, not degenerate
+  bool degenerate = false;          // eigenvalue ratios below degeneracy_threshold (see above)
+  int iterations = 0;               // Gauss-Newton iterations over all levels
+  size_t num_inliers = 0;           // matches of the last iteration (finest level)
+  double rmse_m = 0;                // RMS point-to-plane residual of those matches (m)
   Mat6 information = Mat6::Zero();  // right perturbation of target_from_source (1/rad^2, 1/m^2)
   Vec6 scaled_eigenvalues = Vec6::Zero();  // of D H D, D = diag(1/L I3, I3), ascending
   std::string message;

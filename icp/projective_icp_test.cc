@@ -1,10 +1,10 @@
 #include "icp/projective_icp.h"
 
-#include <cmath>
-#include <random>
+#include <gtest/gtest.h>
 
 #include <Eigen/Eigenvalues>
-#include <gtest/gtest.h>
+#include <cmath>
+#include <random>
 
 #include "core/errors.h"
 #include "icp/testing/scenes.h"
@@ -46,7 +46,8 @@ const SE3 kTargetFromSource(so3::Exp(Vec3(0.02, -0.03, 0.01)), Vec3(0.04, -0.03,
 TEST(RegisterProjective, RecoversKnownMotionNoiseFree) {
   std::mt19937 rng(1);
   const VertexNormalMap target = MapOf(RenderDepth(kWorldFromTarget, 0.0, &rng));
-  const VertexNormalMap source = MapOf(RenderDepth(kWorldFromTarget * kTargetFromSource, 0.0, &rng));
+  const VertexNormalMap source =
+      MapOf(RenderDepth(kWorldFromTarget * kTargetFromSource, 0.0, &rng));
   const ProjectiveIcpResult result =
       RegisterProjective(source, target, kK, SE3(), ProjectiveIcpOptions());
   EXPECT_TRUE(result.converged) << result.message;
@@ -130,10 +131,10 @@ TEST(ComputeVertexNormalMap, WallAndDiscontinuity) {
   ASSERT_TRUE(map.Valid(centre));
   EXPECT_TRUE(map.normals[centre].isApprox(Eigen::Vector3f(0, 0, -1), 1e-5f));
   EXPECT_NEAR(map.vertices[centre].x(), (40 - kK.cx) / kK.fx * 2.0, 1e-6);
-  EXPECT_FALSE(map.Valid(10 * kK.width + 10));  // no depth
-  EXPECT_FALSE(map.Valid(10 * kK.width + 11));  // a neighbour has none
+  EXPECT_FALSE(map.Valid(10 * kK.width + 10));            // no depth
+  EXPECT_FALSE(map.Valid(10 * kK.width + 11));            // a neighbour has none
   EXPECT_FALSE(map.Valid(60 * kK.width + kK.width / 2));  // at the step
-  EXPECT_FALSE(map.Valid(0));                              // border
+  EXPECT_FALSE(map.Valid(0));                             // border
 }
 
 }  // namespace

@@ -1,10 +1,10 @@
 #include "icp/rgbd_fusion.h"
 
-#include <chrono>
-#include <cmath>
-
 #include <fmt/format.h>
 #include <tbb/parallel_for.h>
+
+#include <chrono>
+#include <cmath>
 
 #include "core/errors.h"
 #include "core/option_check.h"
@@ -20,12 +20,13 @@ double MsSince(std::chrono::steady_clock::time_point t0) {
 }  // namespace
 
 bool RgbdFusionOptions::Check() const {
-  CHECK_OPTION_MSG(downsample_factor, downsample_factor >= 1 && downsample_factor <= 8, "in [1, 8]");
+  CHECK_OPTION_MSG(
+      downsample_factor, downsample_factor >= 1 && downsample_factor <= 8, "in [1, 8]");
   CHECK_OPTION_GE(min_depth_m, 0.0);
   CHECK_OPTION_GT(max_depth_m, min_depth_m);
   CHECK_OPTION_GT(max_depth_jump, 0.0);
-  CHECK_OPTION_MSG(max_incidence_deg, max_incidence_deg > 0 && max_incidence_deg <= 90,
-                   "in (0, 90]");
+  CHECK_OPTION_MSG(
+      max_incidence_deg, max_incidence_deg > 0 && max_incidence_deg <= 90, "in (0, 90]");
   CHECK_OPTION_GT(bilateral_sigma_px, 0.0);
   CHECK_OPTION_GT(bilateral_sigma_depth_m, 0.0);
   CHECK_OPTION_MSG(model_splat_px, model_splat_px >= 0 && model_splat_px <= 3, "in [0, 3]");
@@ -36,18 +37,22 @@ RgbdFusion::RgbdFusion(const PinholeIntrinsics& full_intrinsics,
                        const RgbdFusionOptions& options,
                        const ProjectiveIcpOptions& icp_options,
                        const SurfelFusionOptions& fusion_options)
-    : full_(full_intrinsics),
-      options_(options),
-      icp_options_(icp_options),
-      map_(fusion_options) {
+    : full_(full_intrinsics), options_(options), icp_options_(icp_options), map_(fusion_options) {
   THROW_CHECK_OPTIONS(options_);
   THROW_CHECK_OPTIONS(icp_options_);
   const int k = options_.downsample_factor;
   if (!(full_.fx > 0 && full_.fy > 0) || full_.width < 3 * k || full_.height < 3 * k) {
-    throw InputError("RGB-D intrinsics", "",
+    throw InputError("RGB-D intrinsics",
+                     "",
                      fmt::format("expected fx, fy > 0 and at least {}x{} pixels (downsample "
                                  "factor {}), found fx={} fy={} {}x{}",
-                                 3 * k, 3 * k, k, full_.fx, full_.fy, full_.width, full_.height));
+                                 3 * k,
+                                 3 * k,
+                                 k,
+                                 full_.fx,
+                                 full_.fy,
+                                 full_.width,
+                                 full_.height));
   }
   // Pixel (u', v') of the downsampled image is pixel (k u', k v') of the input:
   // u = fx x/z + cx  =>  u' = (fx/k) x/z + cx/k.
@@ -64,10 +69,14 @@ RgbdFusion::RgbdFusion(const PinholeIntrinsics& full_intrinsics,
 void RgbdFusion::Preprocess(const std::vector<float>& depth_m, const std::vector<uint8_t>& rgb) {
   const size_t full_pixels = static_cast<size_t>(full_.width) * full_.height;
   if (depth_m.size() != full_pixels || (!rgb.empty() && rgb.size() != 3 * full_pixels)) {
-    throw InputError("RGB-D frame", fmt::format("frame {}", num_frames_),
+    throw InputError("RGB-D frame",
+                     fmt::format("frame {}", num_frames_),
                      fmt::format("expected a {}x{} depth image ({} pixels) and an RGB image of "
                                  "the same size, found {} depth pixels and {} RGB bytes",
-                                 full_.width, full_.height, full_pixels, depth_m.size(),
+                                 full_.width,
+                                 full_.height,
+                                 full_pixels,
+                                 depth_m.size(),
                                  rgb.size()));
   }
   const int k = options_.downsample_factor;
@@ -90,10 +99,10 @@ void RgbdFusion::Preprocess(const std::vector<float>& depth_m, const std::vector
     // z' = sum w z_j / sum w, w = exp(-d^2 / 2 s^2 - (z_j - z)^2 / 2 s_z^2).
     filtered_.resize(n);
     const int reach = static_cast<int>(std::ceil(2.0 * options_.bilateral_sigma_px));
-    const float inv_s2 = static_cast<float>(0.5 / (options_.bilateral_sigma_px *
-                                                   options_.bilateral_sigma_px));
-    const float inv_z2 = static_cast<float>(0.5 / (options_.bilateral_sigma_depth_m *
-                                                   options_.bilateral_sigma_depth_m));
+    const float inv_s2 =
+        static_cast<float>(0.5 / (options_.bilateral_sigma_px * options_.bilateral_sigma_px));
+    const float inv_z2 = static_cast<float>(
+        0.5 / (options_.bilateral_sigma_depth_m * options_.bilateral_sigma_depth_m));
     tbb::parallel_for(0, h, [&](int v) {
       for (int u = 0; u < w; ++u) {
         const size_t i = static_cast<size_t>(v) * w + u;
@@ -122,14 +131,19 @@ void RgbdFusion::Preprocess(const std::vector<float>& depth_m, const std::vector
     });
     depth = &filtered_;
   }
-  ComputeVertexNormalMap(*depth, intrinsics_, options_.min_depth_m, options_.max_depth_m,
-                         options_.max_depth_jump, &frame_.map);
+  ComputeVertexNormalMap(*depth,
+                         intrinsics_,
+                         options_.min_depth_m,
+                         options_.max_depth_m,
+                         options_.max_depth_jump,
+                         &frame_.map);
   // Oblique observations: |n . q| / |q| = cos of the angle between normal and ray.
   const float min_cos = static_cast<float>(std::cos(options_.max_incidence_deg * M_PI / 180.0));
   tbb::parallel_for(size_t{0}, n, [&](size_t i) {
     if (!frame_.map.Valid(i)) return;
     const Eigen::Vector3f& q = frame_.map.vertices[i];
-    if (std::abs(frame_.map.normals[i].dot(q)) < min_cos * q.norm()) frame_.map.normals[i].setZero();
+    if (std::abs(frame_.map.normals[i].dot(q)) < min_cos * q.norm())
+      frame_.map.normals[i].setZero();
   });
 }
 
@@ -146,7 +160,8 @@ RgbdFrameResult RgbdFusion::AddFrame(const std::vector<float>& depth_m,
     result.world_from_camera = world_from_camera ? *world_from_camera : SE3();
   } else {
     // model_ holds the model at previous_ (rendered after the last fusion).
-    const SE3 initial = previous_motion_;  // previous_from_current, constant velocity
+    // previous_from_current: the last motion (constant velocity) or none.
+    const SE3 initial = options_.constant_velocity ? previous_motion_ : SE3();
     result.icp = RegisterProjective(frame_.map, model_, intrinsics_, initial, icp_options_);
     result.tracked = result.icp.num_inliers >= static_cast<size_t>(icp_options_.min_inliers) &&
                      result.icp.target_from_source.translation().allFinite();
@@ -163,8 +178,8 @@ RgbdFrameResult RgbdFusion::AddFrame(const std::vector<float>& depth_m,
   t0 = std::chrono::steady_clock::now();
   if (!world_from_camera || num_frames_ == 0) {
     // The next frame's tracking target; only needed while tracking.
-    map_.RenderVertexNormalMap(result.world_from_camera, intrinsics_, 0.0,
-                               options_.model_splat_px, &model_);
+    map_.RenderVertexNormalMap(
+        result.world_from_camera, intrinsics_, 0.0, options_.model_splat_px, &model_);
   }
   result.track_ms += MsSince(t0);
   previous_motion_ = num_frames_ == 0 ? SE3() : previous_.Inverse() * result.world_from_camera;

@@ -9,9 +9,10 @@
 // later poses chain the ICP estimates.
 //
 // Tracking: the model is rendered (index map, splat radius model_splat_px) at the
-// previous pose; the initial guess is the previous relative motion (constant
-// velocity). The ICP estimate is used when it has at least min_inliers matches;
-// otherwise the frame keeps the prediction and FrameResult::tracked is false.
+// previous pose; the initial guess is the previous pose or, with constant_velocity,
+// the previous relative motion applied once more. The ICP estimate is used when it
+// has at least min_inliers matches; otherwise the frame keeps the initial guess and
+// FrameResult::tracked is false.
 //
 // Threads: TBB inside each stage; not thread-safe itself. Results do not depend
 // on the thread count.
@@ -29,22 +30,27 @@
 namespace lisfm {
 
 struct RgbdFusionOptions {
-  int downsample_factor = 2;         // keep every k-th pixel in both directions (1..8)
-  double min_depth_m = 0.1;          // depths below are invalid (m)
-  double max_depth_m = 4.0;          // depths above are invalid (m)
-  double max_depth_jump = 0.05;      // no normal across a neighbour depth step above this fraction of z
-  double max_incidence_deg = 80.0;   // drop pixels seen more obliquely (normal vs ray, deg)
-  bool bilateral_filter = false;     // bilateral filter of the (downsampled) depth
-  double bilateral_sigma_px = 1.5;   // spatial sigma (pixels of the downsampled image)
+  int downsample_factor = 2;     // keep every k-th pixel in both directions (1..8)
+  double min_depth_m = 0.1;      // depths below are invalid (m)
+  double max_depth_m = 5.0;      // depths above are invalid (m)
+  double max_depth_jump = 0.05;  // no normal across a neighbour depth step above this fraction of z
+  double max_incidence_deg = 80.0;        // drop pixels seen more obliquely (normal vs ray, deg)
+  bool bilateral_filter = false;          // bilateral filter of the (downsampled) depth
+  double bilateral_sigma_px = 1.5;        // spatial sigma (pixels of the downsampled image)
   double bilateral_sigma_depth_m = 0.02;  // range sigma (m)
-  int model_splat_px = 1;            // tracking target: surfels cover up to this many pixels (0..3)
+  int model_splat_px = 1;  // tracking target: surfels cover up to this many pixels (0..3)
+  // Initial guess of tracking: the previous frame's motion (1) or the previous pose
+  // (0). The ICP keeps the initial guess along unconstrained directions (a corridor's
+  // axis), where a constant-velocity guess integrates every velocity error into
+  // position without bound; the previous pose leaves at most the true motion there.
+  bool constant_velocity = false;
   bool Check() const;
 };
 
 struct RgbdFrameResult {
   SE3 world_from_camera;
-  bool tracked = false;       // pose from ICP (false: given pose, first frame, or ICP failed)
-  ProjectiveIcpResult icp;    // when tracking ran
+  bool tracked = false;     // pose from ICP (false: given pose, first frame, or ICP failed)
+  ProjectiveIcpResult icp;  // when tracking ran
   FuseStats fuse;
   double preprocess_ms = 0, track_ms = 0, fuse_ms = 0;  // wall-clock per stage (ms)
 };

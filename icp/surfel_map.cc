@@ -1,13 +1,13 @@
 #include "icp/surfel_map.h"
 
+#include <fmt/format.h>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
 #include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <limits>
-
-#include <fmt/format.h>
-#include <tbb/blocked_range.h>
-#include <tbb/parallel_for.h>
 
 #include "core/errors.h"
 #include "core/option_check.h"
@@ -19,19 +19,19 @@ namespace {
 constexpr double kDegToRad = M_PI / 180.0;
 constexpr uint64_t kEmptyKey = ~uint64_t{0};
 
-// z-buffer key: the depth's bits (positive floats order like their bit patterns)
-// above the surfel index, so that the atomic minimum keeps the nearest surfel and,
-// at equal depth, the lower index.
-uint64_t Key(float z, uint32_t index) {
+// z-buffer key: a splat flag (bit 63), the depth's bits (bits 32-62: positive
+// floats order like their bit patterns and have a zero sign bit) and the surfel
+// index, so that the atomic minimum keeps a surfel whose centre falls into the
+// pixel over any splatted disc, then the nearest, then the lower index.
+uint64_t Key(float z, uint32_t index, bool splatted) {
   uint32_t bits;
   std::memcpy(&bits, &z, sizeof(bits));
-  return (static_cast<uint64_t>(bits) << 32) | index;
+  return (static_cast<uint64_t>(splatted) << 63) | (static_cast<uint64_t>(bits) << 32) | index;
 }
 
 void AtomicMin(std::atomic<uint64_t>* a, uint64_t value) {
   uint64_t current = a->load(std::memory_order_relaxed);
-  while (value < current &&
-         !a->compare_exchange_weak(current, value, std::memory_order_relaxed)) {
+  while (value < current && !a->compare_exchange_weak(current, value, std::memory_order_relaxed)) {
   }
 }
 
@@ -39,10 +39,10 @@ void AtomicMin(std::atomic<uint64_t>* a, uint64_t value) {
 
 bool SurfelFusionOptions::Check() const {
   CHECK_OPTION_GT(max_merge_distance_m, 0.0);
-  CHECK_OPTION_MSG(max_merge_angle_deg, max_merge_angle_deg > 0 && max_merge_angle_deg <= 180,
-                   "in (0, 180]");
-  CHECK_OPTION_MSG(association_radius_px, association_radius_px >= 0 && association_radius_px <= 3,
-                   "in [0, 3]");
+  CHECK_OPTION_MSG(
+      max_merge_angle_deg, max_merge_angle_deg > 0 && max_merge_angle_deg <= 180, "in (0, 180]");
+  CHECK_OPTION_MSG(
+      association_radius_px, association_radius_px >= 0 && association_radius_px <= 3, "in [0, 3]");
   CHECK_OPTION_GE(unstable_age_frames, 0);
   CHECK_OPTION_GE(unstable_min_confidence, 0.0);
   CHECK_OPTION_GE(output_min_confidence, 0.0);
@@ -84,21 +84,23 @@ void SurfelMap::RenderIndexMap(const SE3& world_from_camera,
   const float fx = static_cast<float>(K.fx), fy = static_cast<float>(K.fy);
   const float cx = static_cast<float>(K.cx), cy = static_cast<float>(K.cy);
   const float min_conf = static_cast<float>(min_confidence);
+  const Eigen::Vector3f centre = world_from_camera.translation().cast<float>();
   const int w = K.width, h = K.height;
   tbb::parallel_for(
-      tbb::blocked_range<size_t>(0, surfels_.size(), 8192), [&](const tbb::blocked_range<size_t>& r) {
+      tbb::blocked_range<size_t>(0, surfels_.size(), 8192),
+      [&](const tbb::blocked_range<size_t>& r) {
         for (size_t i = r.begin(); i != r.end(); ++i) {
           const Surfel& s = surfels_[i];
           if (s.confidence < min_conf) continue;
           const Eigen::Vector3f p = R * s.position + t;
           if (!(p.z() > 0)) continue;
-          if ((R * s.normal).dot(p) > 0) continue;  // facing away from the camera
+          if (s.normal.dot(s.position - centre) > 0) continue;  // facing away from the camera
           const float inv_z = 1.f / p.z();
           // Nearest pixel: floor(x + 0.5); far outside the image is skipped before the cast.
           const float uf = fx * p.x() * inv_z + cx + 0.5f, vf = fy * p.y() * inv_z + cy + 0.5f;
           if (!(uf >= -splat && vf >= -splat && uf < w + splat && vf < h + splat)) continue;
           const int u = static_cast<int>(std::floor(uf)), v = static_cast<int>(std::floor(vf));
-          const uint64_t key = Key(p.z(), static_cast<uint32_t>(i));
+          const uint64_t key = Key(p.z(), static_cast<uint32_t>(i), false);
           if (splat == 0) {
             if (u < 0 || v < 0 || u >= w || v >= h) continue;
             AtomicMin(&zb[static_cast<size_t>(v) * w + u], key);
@@ -107,6 +109,8 @@ void SurfelMap::RenderIndexMap(const SE3& world_from_camera,
           const float radius_px = s.radius_m * fx * inv_z;
           const int reach = std::min(splat, static_cast<int>(radius_px));
           const float r2 = std::max(radius_px * radius_px, 0.25f);
+          const Eigen::Vector3f n = R * s.normal;
+          const float n_dot_p = n.dot(p);
           for (int dv = -reach; dv <= reach; ++dv) {
             const int vv = v + dv;
             if (vv < 0 || vv >= h) continue;
@@ -114,20 +118,34 @@ void SurfelMap::RenderIndexMap(const SE3& world_from_camera,
               const int uu = u + du;
               if (uu < 0 || uu >= w) continue;
               if (static_cast<float>(du * du + dv * dv) > r2 && (du != 0 || dv != 0)) continue;
-              AtomicMin(&zb[static_cast<size_t>(vv) * w + uu], key);
+              if (du == 0 && dv == 0) {
+                AtomicMin(&zb[static_cast<size_t>(vv) * w + uu], key);
+                continue;
+              }
+              // The depth where the pixel's ray meets the surfel's disc (its plane);
+              // the centre's depth when the ray is nearly parallel to it.
+              float z = p.z();
+              const Eigen::Vector3f ray((uu - cx) / fx, (vv - cy) / fy, 1.f);
+              const float n_dot_ray = n.dot(ray);
+              if (n_dot_ray < -1e-3f) {
+                const float zi = n_dot_p / n_dot_ray;
+                if (zi > 0 && std::abs(zi - p.z()) < 4.f * s.radius_m) z = zi;
+              }
+              AtomicMin(&zb[static_cast<size_t>(vv) * w + uu],
+                        Key(z, static_cast<uint32_t>(i), true));
             }
           }
         }
       });
   index_map->resize(num_pixels);
   uint32_t* out = index_map->data();
-  tbb::parallel_for(tbb::blocked_range<size_t>(0, num_pixels, 4096),
-                    [&](const tbb::blocked_range<size_t>& r) {
-                      for (size_t i = r.begin(); i != r.end(); ++i) {
-                        const uint64_t key = zb[i].load(std::memory_order_relaxed);
-                        out[i] = key == kEmptyKey ? kNoSurfel : static_cast<uint32_t>(key);
-                      }
-                    });
+  tbb::parallel_for(
+      tbb::blocked_range<size_t>(0, num_pixels, 4096), [&](const tbb::blocked_range<size_t>& r) {
+        for (size_t i = r.begin(); i != r.end(); ++i) {
+          const uint64_t key = zb[i].load(std::memory_order_relaxed);
+          out[i] = key == kEmptyKey ? kNoSurfel : static_cast<uint32_t>(key & 0xffffffffu);
+        }
+      });
 }
 
 void SurfelMap::RenderVertexNormalMap(const SE3& world_from_camera,
@@ -148,8 +166,25 @@ void SurfelMap::RenderVertexNormalMap(const SE3& world_from_camera,
       out->vertices[i] = Eigen::Vector3f(nan, nan, 0.f);
       out->normals[i].setZero();
     } else {
-      out->vertices[i] = R * surfels_[s].position + t;
-      out->normals[i] = R * surfels_[s].normal;
+      // The point where the pixel's ray meets the surfel's plane (so that the
+      // vertex lies on the ray, like a measured one), or the surfel centre when the
+      // ray is nearly parallel to the plane or meets it beyond the disc's reach.
+      const Eigen::Vector3f p = R * surfels_[s].position + t;
+      const Eigen::Vector3f n = R * surfels_[s].normal;
+      const int u = static_cast<int>(i % K.width), v = static_cast<int>(i / K.width);
+      const Eigen::Vector3f ray(
+          static_cast<float>((u - K.cx) / K.fx), static_cast<float>((v - K.cy) / K.fy), 1.f);
+      const float n_dot_ray = n.dot(ray);
+      Eigen::Vector3f q = p;
+      if (n_dot_ray < -1e-3f) {
+        const Eigen::Vector3f qi = ray * (n.dot(p) / n_dot_ray);
+        if (qi.z() > 0 &&
+            (qi - p).squaredNorm() < 16.f * surfels_[s].radius_m * surfels_[s].radius_m) {
+          q = qi;
+        }
+      }
+      out->vertices[i] = q;
+      out->normals[i] = n;
     }
   });
 }
@@ -160,10 +195,15 @@ FuseStats SurfelMap::Fuse(const FusionFrame& frame, const SE3& world_from_camera
   if (num_pixels == 0 || frame.map.width != K.width || frame.map.height != K.height ||
       frame.map.vertices.size() != num_pixels || frame.map.normals.size() != num_pixels ||
       (!frame.colors.empty() && frame.colors.size() != num_pixels)) {
-    throw InputError("fusion frame", fmt::format("frame {}", frame_index),
-                     fmt::format("expected {}x{} vertices, normals and colours, found {}, {} and {}",
-                                 K.width, K.height, frame.map.vertices.size(),
-                                 frame.map.normals.size(), frame.colors.size()));
+    throw InputError(
+        "fusion frame",
+        fmt::format("frame {}", frame_index),
+        fmt::format("expected {}x{} vertices, normals and colours, found {}, {} and {}",
+                    K.width,
+                    K.height,
+                    frame.map.vertices.size(),
+                    frame.map.normals.size(),
+                    frame.colors.size()));
   }
   FuseStats stats;
   RenderIndexMap(world_from_camera, K, 0.0, 0, &index_map_);
@@ -288,9 +328,11 @@ size_t SurfelMap::RemoveUnstable(int frame_index) {
   const float min_conf = static_cast<float>(options_.unstable_min_confidence);
   const int age = options_.unstable_age_frames;
   const size_t before = surfels_.size();
-  surfels_.erase(std::remove_if(surfels_.begin(), surfels_.end(),
+  surfels_.erase(std::remove_if(surfels_.begin(),
+                                surfels_.end(),
                                 [&](const Surfel& s) {
-                                  return frame_index - s.first_seen > age && s.confidence < min_conf;
+                                  return frame_index - s.first_seen > age &&
+                                         s.confidence < min_conf;
                                 }),
                  surfels_.end());
   return before - surfels_.size();

@@ -47,12 +47,12 @@
 namespace lisfm {
 
 struct Surfel {
-  Eigen::Vector3f position;    // world frame (m)
-  Eigen::Vector3f normal;      // world frame, unit
-  float radius_m = 0;          // disc radius (m)
-  float confidence = 0;        // w: number of merged observations
-  int32_t first_seen = 0;      // frame index of the first observation
-  int32_t last_seen = 0;       // frame index of the last merged observation
+  Eigen::Vector3f position;        // world frame (m)
+  Eigen::Vector3f normal;          // world frame, unit
+  float radius_m = 0;              // disc radius (m)
+  float confidence = 0;            // w: number of merged observations
+  int32_t first_seen = 0;          // frame index of the first observation
+  int32_t last_seen = 0;           // frame index of the last merged observation
   std::array<uint8_t, 3> color{};  // RGB
 };
 
@@ -99,7 +99,8 @@ class SurfelMap {
   // The nearest surfel per pixel (kNoSurfel where none) of `intrinsics`'s image
   // seen from world_from_camera; surfels with confidence below min_confidence are
   // ignored. `splat` > 0 also covers the pixels within the surfel's projected
-  // radius (at most splat pixels away); 0 = one pixel per surfel.
+  // radius (at most splat pixels away) that no surfel centre falls into, at the
+  // depth where their rays meet the surfel's plane; 0 = one pixel per surfel.
   void RenderIndexMap(const SE3& world_from_camera,
                       const PinholeIntrinsics& intrinsics,
                       double min_confidence,
@@ -107,7 +108,9 @@ class SurfelMap {
                       std::vector<uint32_t>* index_map) const;
 
   // The model's vertex and normal maps in the camera frame at world_from_camera
-  // (the target of RegisterProjective), from RenderIndexMap with `splat`.
+  // (the target of RegisterProjective), from RenderIndexMap with `splat`. A pixel's
+  // vertex is where its ray meets the plane of its surfel (within 4 radii of the
+  // centre; else the centre): like a measured vertex it lies on the pixel's ray.
   void RenderVertexNormalMap(const SE3& world_from_camera,
                              const PinholeIntrinsics& intrinsics,
                              double min_confidence,

@@ -1,10 +1,10 @@
 #include "icp/surfel_map.h"
 
+#include <gtest/gtest.h>
+
 #include <algorithm>
 #include <cmath>
 #include <random>
-
-#include <gtest/gtest.h>
 
 #include "core/errors.h"
 #include "icp/rgbd_fusion.h"
@@ -59,8 +59,8 @@ TEST(SurfelMap, MergeIsConfidenceWeightedAverage) {
   // Too far (3 cm > 2 cm): a new surfel.
   stats = map.Fuse(CentreFrame({0, 0, 1.03f}, n1), world_from_camera, 3);
   EXPECT_EQ(stats.added, 1u);
-  // Normals 30 deg apart (> 20 deg): a new surfel.
-  const Eigen::Vector3f tilted(std::sin(0.52f), 0, -std::cos(0.52f));
+  // Normals 60 deg apart (> 45 deg): a new surfel.
+  const Eigen::Vector3f tilted(std::sin(1.05f), 0, -std::cos(1.05f));
   stats = map.Fuse(CentreFrame({0, 0, 1.0f}, tilted), world_from_camera, 4);
   EXPECT_EQ(stats.added, 1u);
 }
@@ -147,9 +147,8 @@ TEST(RgbdFusion, GivenPosesPutSurfelsOnTheWalls) {
 TEST(RgbdFusion, TracksKnownTrajectory) {
   RgbdFusion fusion(kFull, RgbdFusionOptions(), ProjectiveIcpOptions(), SurfelFusionOptions());
   for (int k = 0; k < 20; ++k) {
-    const RgbdFrameResult r =
-        fusion.AddFrame(RenderDepth(PoseAt(k)), {}, k == 0 ? std::optional<SE3>(PoseAt(0))
-                                                           : std::nullopt);
+    const RgbdFrameResult r = fusion.AddFrame(
+        RenderDepth(PoseAt(k)), {}, k == 0 ? std::optional<SE3>(PoseAt(0)) : std::nullopt);
     if (k > 0) {
       EXPECT_TRUE(r.tracked) << k << ": " << r.icp.message;
       EXPECT_TRUE(r.icp.converged) << k << ": " << r.icp.message;
