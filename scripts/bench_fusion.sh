@@ -13,7 +13,8 @@
 # scene.ply (bench/fusion_eval.cc); points, compression ratio (points / input pixels), bytes
 # per point; tracking + fusion time per frame and the speed ratio.
 # Usage: scripts/bench_fusion.sh [OUT_DIR]   (default /tmp/lisfm_bench_fusion; scratch, delete
-#        it afterwards). Environment: SIM_DURATION (60), SIM_RATE (30), SIM_SEED (1).
+#        it afterwards). Environment: SIM_DURATION (60), SIM_RATE (30), SIM_SEED (1),
+#        FUSION_DATASETS ("7scenes sim_office": the data sets to run).
 # Prints a markdown table for docs/BENCHMARKS.md. Exits 1 with a message when `lisfm fusion`
 # is not built.
 set -euo pipefail
@@ -22,6 +23,7 @@ OUT="${1:-/tmp/lisfm_bench_fusion}"
 SIM_DURATION="${SIM_DURATION:-60}"
 SIM_RATE="${SIM_RATE:-30}"
 SIM_SEED="${SIM_SEED:-1}"
+FUSION_DATASETS="${FUSION_DATASETS:-7scenes sim_office}"
 lisfm_build_bench lisfm lisfm_fusion_open3d lisfm_fusion_eval >"$OUT.build.log" 2>&1 || {
   tail -30 "$OUT.build.log"
   echo "error: the build failed (log: $OUT.build.log)" >&2
@@ -88,14 +90,18 @@ run_dataset() {
 }
 
 SEVEN="$LISFM_SHARED_DATA/rgbd_7scenes_subset"
-if [[ -d "$SEVEN" ]]; then
+if [[ " $FUSION_DATASETS " != *" 7scenes "* ]]; then
+  :
+elif [[ -d "$SEVEN" ]]; then
   run_dataset 7scenes "$SEVEN"
 else
   echo "warning: $SEVEN is missing; skipping the 7-Scenes rows" >&2
 fi
 
 SIM="$OUT/sim_office_${SIM_DURATION}s_${SIM_RATE}hz"
-if [[ ! -f "$SIM/rgbd0/data.csv" ]]; then
+if [[ " $FUSION_DATASETS " != *" sim_office "* ]]; then
+  :
+elif [[ ! -f "$SIM/rgbd0/data.csv" ]]; then
   t0=$(now)
   "$LISFM" simulate --scene office --duration "$SIM_DURATION" --seed "$SIM_SEED" --rgbd 1 \
     --rgbd_rate "$SIM_RATE" --lidars none --camera_rate 0 --error_sources none \
@@ -106,7 +112,9 @@ if [[ ! -f "$SIM/rgbd0/data.csv" ]]; then
   }
   echo "simulated $SIM in $(echo "$(now) - $t0" | bc | xargs printf '%.0f') s" >&2
 fi
-run_dataset sim_office "$SIM" "$SIM/scene.ply"
+if [[ " $FUSION_DATASETS " == *" sim_office "* ]]; then
+  run_dataset sim_office "$SIM" "$SIM/scene.ply"
+fi
 
 echo "end $(date -u +%H:%M:%S) UTC, $(uptime | sed 's/.*load/load/')"
 python3 - "$OUT" <<'EOF'
