@@ -38,6 +38,15 @@ constexpr uint16_t kSevenScenesInvalid = 65535;  // 7-Scenes' other invalid dept
 
 // ---- small parsing helpers ----
 
+// The folder containing `path` ("." for a relative name without one); a trailing
+// separator does not count ("a/b/" -> "a").
+std::string ParentDir(const std::string& path) {
+  fs::path p = fs::path(path).lexically_normal();
+  if (p.filename().empty()) p = p.parent_path();
+  const std::string parent = p.parent_path().string();
+  return parent.empty() ? "." : parent;
+}
+
 bool IsCommentOrBlank(const std::string& line) {
   const size_t first = line.find_first_not_of(" \t\r");
   return first == std::string::npos || line[first] == '#';
@@ -294,8 +303,7 @@ RgbdSequence ReadLisfm(const std::string& path, const RgbdReadOptions& options) 
   if (!FileExists(JoinPaths(dir, "data.csv"))) {
     if (FileExists(JoinPaths(path, "data.csv"))) {
       dir = path;
-      sequence_dir = fs::path(path).lexically_normal().parent_path().string();
-      if (sequence_dir.empty()) sequence_dir = ".";
+      sequence_dir = ParentDir(path);
     } else {
       throw InputError(JoinPaths(dir, "data.csv"),
                        "file",
@@ -548,8 +556,7 @@ RgbdSequence ReadSevenScenes(const std::string& path, const RgbdReadOptions& opt
   } else {
     std::vector<std::string> candidates = {JoinPaths(path, "camera-intrinsics.txt"),
                                            JoinPaths(frames_dir, "camera-intrinsics.txt")};
-    const std::string parent = fs::path(frames_dir).lexically_normal().parent_path().string();
-    if (!parent.empty()) candidates.push_back(JoinPaths(parent, "camera-intrinsics.txt"));
+    candidates.push_back(JoinPaths(ParentDir(frames_dir), "camera-intrinsics.txt"));
     for (const std::string& c : candidates) {
       if (FileExists(c)) {
         seq.intrinsics = ReadIntrinsicsFile(c, seq.frames[0].depth_path);

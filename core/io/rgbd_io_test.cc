@@ -130,7 +130,7 @@ TEST(RgbdIo, ReadsTheLisfmSequenceLayout) {
   TempDir dir;
   const Trajectory world_from_imu = WriteLisfmSequence(dir.path());
   const Trajectory read_back = ReadTum(dir.File("groundtruth.txt"));  // as the reader sees it
-  for (const std::string& path : {dir.path(), dir.File("rgbd0")}) {
+  for (const std::string& path : {dir.path(), dir.File("rgbd0"), dir.File("rgbd0/")}) {
     const RgbdSequence seq = ReadRgbdSequence(path);
     EXPECT_EQ(seq.layout, RgbdLayout::kLisfm);
     EXPECT_EQ(seq.intrinsics.fx, 5.5);
@@ -282,7 +282,9 @@ TEST(RgbdIo, ReadsTheSevenScenesLayout) {
   cv::Mat depth = cv::imread(dir.File("frames/frame-000001.depth.png"), cv::IMREAD_UNCHANGED);
   depth.at<uint16_t>(2, 3) = 65535;
   ASSERT_TRUE(cv::imwrite(dir.File("frames/frame-000001.depth.png"), depth));
-  for (const std::string& path : {dir.path(), dir.File("frames")}) {
+  // camera-intrinsics.txt beside frames/ is found from frames/ too, with or without a
+  // trailing separator.
+  for (const std::string& path : {dir.path(), dir.File("frames"), dir.File("frames/")}) {
     const RgbdSequence seq = ReadRgbdSequence(path);
     EXPECT_EQ(seq.layout, RgbdLayout::kSevenScenes);
     EXPECT_EQ(seq.intrinsics.fx, 5.85);
