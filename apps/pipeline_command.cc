@@ -31,6 +31,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <iterator>
 #include <map>
 #include <nlohmann/json.hpp>
 #include <optional>
@@ -41,6 +42,7 @@
 #include <vector>
 
 #include "apps/commands.h"
+#include "apps/stage_progress.h"
 #include "colmap_ext/io/database.h"
 #include "colmap_ext/io/model_io.h"
 #include "colmap_ext/io/reconstruction.h"
@@ -215,9 +217,85 @@ std::string CommandLine(const std::vector<std::string>& args) {
   return line;
 }
 
+// The running stage's status on stderr while its child processes run: the
+// stage label, elapsed seconds and the latest progress counter found in the
+// child's log (ParseStageProgress). On a terminal one status line is redrawn
+// every 0.25 s and cleared when the stage ends; otherwise a plain line is
+// printed at most every 10 s. The log itself is only read, never changed.
+class StageMonitor {
+ public:
+  void Start(const std::string& label) {
+    label_ = label;
+    active_ = true;
+    tty_ = isatty(STDERR_FILENO) != 0;
+    start_ = std::chrono::steady_clock::now();
+    last_print_ = start_;
+    progress_.reset();
+    log_path_.clear();
+    offset_ = 0;
+    partial_.clear();
+  }
+  // Reads what the child appended to `log_path` since the last call and updates the status.
+  void Poll(const std::string& log_path) {
+    if (!active_) return;
+    if (log_path != log_path_) {
+      log_path_ = log_path;
+      offset_ = 0;
+      partial_.clear();
+    }
+    std::ifstream in(log_path, std::ios::binary);
+    if (in) {
+      in.seekg(static_cast<std::streamoff>(offset_));
+      std::string chunk((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+      offset_ += chunk.size();
+      partial_ += chunk;
+      size_t begin = 0;
+      for (size_t end; (end = partial_.find_first_of("\r\n", begin)) != std::string::npos;
+           begin = end + 1) {
+        if (auto p = ParseStageProgress(partial_.substr(begin, end - begin))) progress_ = p;
+      }
+      partial_.erase(0, begin);
+    }
+    const auto now = std::chrono::steady_clock::now();
+    const double since = std::chrono::duration<double>(now - last_print_).count();
+    if (since < (tty_ ? 0.25 : 10.0)) return;
+    last_print_ = now;
+    const std::string text =
+        FormatStageStatus(label_, std::chrono::duration<double>(now - start_).count(), progress_);
+    if (tty_) {
+      ShowStatusLine(text);
+    } else {
+      std::cerr << text << "\n" << std::flush;
+    }
+  }
+  // Clears the terminal status line; later Poll calls do nothing.
+  void Stop() {
+    if (active_ && tty_) ShowStatusLine("");
+    active_ = false;
+  }
+  bool active() const { return active_; }
+
+ private:
+  std::string label_;
+  bool active_ = false;
+  bool tty_ = false;
+  std::chrono::steady_clock::time_point start_, last_print_;
+  std::optional<StageProgress> progress_;
+  std::string log_path_;
+  size_t offset_ = 0;
+  std::string partial_;  // the last, unfinished log line
+};
+
+StageMonitor& Monitor() {
+  static StageMonitor monitor;
+  return monitor;
+}
+
 // Runs `args` (args[0] an executable path) with stdout and stderr appended to
 // `log_path`; QT_QPA_PLATFORM=offscreen so that stock COLMAP needs no display.
-// Returns the exit code (128 + signal when killed; 127 when it cannot start).
+// While a stage is monitored (Monitor().active()) its status is updated every
+// 0.25 s from the log. Returns the exit code (128 + signal when killed; 127 when
+// it cannot start).
 int RunChild(const std::vector<std::string>& args, const std::string& log_path) {
   {
     std::ofstream log(log_path, std::ios::app);
@@ -250,8 +328,15 @@ int RunChild(const std::vector<std::string>& args, const std::string& log_path) 
     return 127;
   }
   int status = 0;
-  while (waitpid(pid, &status, 0) < 0) {
-    if (errno != EINTR) return 127;
+  for (;;) {
+    const pid_t done = waitpid(pid, &status, Monitor().active() ? WNOHANG : 0);
+    if (done == pid) break;
+    if (done < 0) {
+      if (errno != EINTR) return 127;
+      continue;
+    }
+    Monitor().Poll(log_path);
+    usleep(250000);
   }
   if (WIFEXITED(status)) return WEXITSTATUS(status);
   if (WIFSIGNALED(status)) return 128 + WTERMSIG(status);
@@ -1324,18 +1409,20 @@ int Pipeline::Run(int argc, char** argv) {
       // The report lists this stage as done with its own time.
       s.status = "done";
     }
-    std::cout << label << " ..." << std::flush;
     const auto start = std::chrono::steady_clock::now();
     fs::remove(RunningLog(s.name));
     if (DirExists(Dir(s.name))) fs::remove_all(Dir(s.name));
+    Monitor().Start(label);
     try {
       RunStage(&s);
     } catch (const std::exception& e) {
+      Monitor().Stop();
       s.status = "failed";
-      std::cout << " failed\n" << std::flush;
+      std::cout << label << " ... failed\n" << std::flush;
       for (const std::string& note : notes_) LogWarning("pipeline: {}: {}", s.name, note);
       throw;
     }
+    Monitor().Stop();
     s.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     s.status = "done";
     CreateDirs(Dir(s.name));
@@ -1349,7 +1436,7 @@ int Pipeline::Run(int argc, char** argv) {
                  {"seconds", s.seconds},
                  {"finished", NowUtc()}};
     WriteFileAtomically(Done(s.name), done.dump(2) + "\n");
-    std::cout << fmt::format(" {:.1f} s\n", s.seconds) << std::flush;
+    std::cout << label << fmt::format(" ... {:.1f} s\n", s.seconds) << std::flush;
     for (const std::string& note : notes_) LogWarning("pipeline: {}: {}", s.name, note);
     notes_.clear();
   }
