@@ -1411,7 +1411,9 @@ void AddBundleAdjustmentOptions(
                      R::AtLeast(0));
   options->AddDouble("BundleAdjustment.prior_frame_max_translation_sigma_m",
                      &ba->prior_frame_max_translation_sigma_m,
-                     "m; the same limit for the translation of rig_from_prior",
+                     "m; refine_prior_frame refines the translation of rig_from_prior along "
+                     "the directions whose predicted standard deviation is below this and holds "
+                     "it along the others",
                      R::AtLeast(0));
   options->AddChoice("BundleAdjustment.loss_type",
                      &ba->loss_type,

@@ -550,6 +550,16 @@ json PriorFrameReport(const json& mapper_summary,
   return j;
 }
 
+// How much of rig_from_prior's translation global_mapper refined (summary
+// "rig_from_prior": translation_directions_refined, 0-3).
+std::string TranslationRefinedText(const json& rig_from_prior) {
+  const int n = rig_from_prior.value("translation_directions_refined",
+                                     rig_from_prior.value("translation_refined", false) ? 3 : 0);
+  if (n <= 0) return "held";
+  if (n >= 3) return "refined";
+  return fmt::format("refined along {} of 3 directions", n);
+}
+
 struct StageState {
   std::string name;
   bool enabled = true;
@@ -1189,7 +1199,7 @@ void Pipeline::WriteReport(const json& report) {
         "it).\n\n| | rotation [deg] | rotation vector, IMU axes [deg] | translation [mm] |\n"
         "|---|---:|---:|---:|\n",
         e.value("rotation_refined", false) ? "refined" : "held",
-        e.value("translation_refined", false) ? "refined" : "held");
+        TranslationRefinedText(e));
     md += row("estimated", e);
     if (p.contains("expected")) {
       md += row("expected from truth/rig.yaml (cam0 and LiDAR calibration errors)", p["expected"]);

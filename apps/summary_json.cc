@@ -47,8 +47,13 @@ nlohmann::json RoundToJson(const MapperRoundSummary& r) {
       j["bundle_adjustment"]["prior_frame"] = {
           {"rotation_refined", ba.prior_frame_rotation_refined},
           {"translation_refined", ba.prior_frame_translation_refined},
+          {"translation_directions_refined", ba.prior_frame_translation_directions_refined},
           {"predicted_rotation_sigma_deg", ba.prior_frame_rotation_sigma_deg},
           {"predicted_translation_sigma_m", ba.prior_frame_translation_sigma_m},
+          {"predicted_translation_sigmas_m",
+           {ba.prior_frame_translation_sigmas_m.x(),
+            ba.prior_frame_translation_sigmas_m.y(),
+            ba.prior_frame_translation_sigmas_m.z()}},
           {"note", ba.prior_frame_note}};
     }
   }
@@ -125,11 +130,13 @@ nlohmann::json ComponentToJson(const MapperComponentSummary& c) {
     const colmap::BundleAdjustmentStats& ba = c.refinement.back().bundle_adjustment;
     const Vec3 omega_deg = so3::Log(ba.rig_from_prior.rotation()) * 180.0 / M_PI;
     const Vec3 t_mm = ba.rig_from_prior.translation() * 1e3;
-    j["rig_from_prior"] = {{"rotation_vector_deg", {omega_deg.x(), omega_deg.y(), omega_deg.z()}},
-                           {"rotation_deg", omega_deg.norm()},
-                           {"translation_mm", {t_mm.x(), t_mm.y(), t_mm.z()}},
-                           {"rotation_refined", ba.prior_frame_rotation_refined},
-                           {"translation_refined", ba.prior_frame_translation_refined}};
+    j["rig_from_prior"] = {
+        {"rotation_vector_deg", {omega_deg.x(), omega_deg.y(), omega_deg.z()}},
+        {"rotation_deg", omega_deg.norm()},
+        {"translation_mm", {t_mm.x(), t_mm.y(), t_mm.z()}},
+        {"rotation_refined", ba.prior_frame_rotation_refined},
+        {"translation_refined", ba.prior_frame_translation_refined},
+        {"translation_directions_refined", ba.prior_frame_translation_directions_refined}};
   }
   j["dropped_weak_frames"] = c.dropped_weak_frames;
   j["model"] = ModelCountsToJson(c.model);

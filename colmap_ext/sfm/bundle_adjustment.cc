@@ -195,33 +195,31 @@ struct BaSpec {
   std::vector<LidarTerm> lidar_terms;
   // X = rig_from_prior (refine_prior_frame): the prior and LiDAR terms go
   // through X; its rotation / translation are refined where *_free.
+  // X's translation is refined along the first prior_frame_translation_free_axes
+  // columns of prior_frame_translation_axes (orthonormal) and held along the rest.
   bool prior_frame = false;
   bool prior_frame_rotation_free = false;
-  bool prior_frame_translation_free = false;
+  Mat3 prior_frame_translation_axes = Mat3::Identity();
+  int prior_frame_translation_free_axes = 0;
   bool first_frame_fixed = false;  // gauge: first frame held
   frame_t scale_frame = 0;         // gauge: this frame's translation
   int scale_coordinate = -1;       //   coordinate held (-1: none)
 };
 
-// The guard of X (bundle_adjustment.h): predicted standard deviations of
-// X's rotation (rad) and translation (m), largest axis of each block of the
-// marginal covariance of X in a linear model of the pose terms (LiDAR terms
-// and priors) at the current values, whose unknowns are X (tangent [dtheta
-// (EigenQuaternionManifold); dt]) and the similarity that the images leave
-// free: world_from_rig -> S * world_from_rig with S = (1 + s) Exp(omega) x +
-// w. J = d r / d [dtheta, dt, s, omega, w] by central differences (steps
+// The guard of X (bundle_adjustment.h): the marginal covariance of X's tangent
+// [dtheta (EigenQuaternionManifold, rad); dt (m)] in a linear model of the pose
+// terms (LiDAR terms and priors, whitened by their own covariances) at the
+// current values, whose unknowns are X and the similarity that the images
+// leave free: world_from_rig -> S * world_from_rig with S = (1 + s) Exp(omega)
+// x + w. J = d r / d [dtheta, dt, s, omega, w] by central differences (steps
 // 1e-6 rad / m / unitless); H = J^T J; X's marginal information is the Schur
 // complement H_xx - H_xg H_gg^+ H_gx (pseudo-inverse: a similarity direction
-// no term sees is a gauge that does not touch X). +inf when that is singular.
-void PriorFrameSigmas(const BaSpec& spec,
-                      const MapperState& state,
-                      double* rotation_sigma,
-                      double* translation_sigma) {
+// no term sees is a gauge that does not touch X). False when that is not
+// finite.
+bool PriorFrameCovariance(const BaSpec& spec, const MapperState& state, Mat6* covariance) {
   constexpr int kNumUnknowns = 13;
   using VecZ = Eigen::Matrix<double, kNumUnknowns, 1>;
   using MatZ = Eigen::Matrix<double, kNumUnknowns, kNumUnknowns>;
-  *rotation_sigma = std::numeric_limits<double>::infinity();
-  *translation_sigma = std::numeric_limits<double>::infinity();
   // Every pose term's whitened residual at the perturbation z.
   const auto residuals = [&](const VecZ& z) {
     const SE3 x(so3::Exp(Vec3(z.segment<3>(0))) * state.rig_from_prior.rotation(),
@@ -274,7 +272,7 @@ void PriorFrameSigmas(const BaSpec& spec,
     const Eigen::VectorXd minus = residuals(-step);
     if (static_cast<size_t>(plus.size()) != num_residuals ||
         static_cast<size_t>(minus.size()) != num_residuals) {
-      return;
+      return false;
     }
     J.col(k) = (plus - minus) / (2.0 * kStep);
   }
@@ -290,17 +288,50 @@ void PriorFrameSigmas(const BaSpec& spec,
       gauge.eigenvectors() * inverse_values.asDiagonal() * gauge.eigenvectors().transpose();
   const Eigen::Matrix<double, 6, 7> H_xg = H.topRightCorner<6, 7>();
   Mat6 information = H.topLeftCorner<6, 6>() - H_xg * gauge_pinv * H_xg.transpose();
-  information = 0.5 * (information + information.transpose()).eval();
+  // Plus a weak prior of 1 rad / 1 m per axis, so that a direction no term
+  // sees (t_X along the only turn axis) gets sigma ~1, far above any limit,
+  // while the seen ones (information >> 1) keep theirs.
+  information = 0.5 * (information + information.transpose()).eval() + Mat6::Identity();
   const Eigen::SelfAdjointEigenSolver<Mat6> eigen(information);
   const Vec6 x_values = eigen.eigenvalues();
-  if (!(x_values(0) > 1e-12 * std::max(1.0, x_values(5)))) return;
-  const Mat6 covariance = eigen.eigenvectors() * x_values.cwiseInverse().asDiagonal() *
-                          eigen.eigenvectors().transpose();
-  const Eigen::SelfAdjointEigenSolver<Mat3> rotation(covariance.topLeftCorner<3, 3>());
-  const Eigen::SelfAdjointEigenSolver<Mat3> translation(covariance.bottomRightCorner<3, 3>());
-  *rotation_sigma = std::sqrt(std::max(0.0, rotation.eigenvalues()(2)));
-  *translation_sigma = std::sqrt(std::max(0.0, translation.eigenvalues()(2)));
+  if (!(x_values(0) > 0.0) || !x_values.allFinite()) return false;
+  *covariance = eigen.eigenvectors() * x_values.cwiseInverse().asDiagonal() *
+                eigen.eigenvectors().transpose();
+  return true;
 }
+
+// Tangent of X's translation along the columns of `axes` (orthonormal 3 x k):
+// t = t0 + axes * delta, so that only those directions move.
+class TranslationSubspaceManifold : public ceres::Manifold {
+ public:
+  explicit TranslationSubspaceManifold(const Eigen::Matrix<double, 3, Eigen::Dynamic>& axes)
+      : axes_(axes) {}
+  int AmbientSize() const override { return 3; }
+  int TangentSize() const override { return static_cast<int>(axes_.cols()); }
+  bool Plus(const double* x, const double* delta, double* x_plus_delta) const override {
+    Vec3::Map(x_plus_delta) =
+        Eigen::Map<const Vec3>(x) + axes_ * Eigen::Map<const Eigen::VectorXd>(delta, axes_.cols());
+    return true;
+  }
+  bool PlusJacobian(const double* /*x*/, double* jacobian) const override {
+    Eigen::Map<Eigen::Matrix<double, 3, Eigen::Dynamic, Eigen::RowMajor>>(
+        jacobian, 3, axes_.cols()) = axes_;
+    return true;
+  }
+  bool Minus(const double* y, const double* x, double* y_minus_x) const override {
+    Eigen::Map<Eigen::VectorXd>(y_minus_x, axes_.cols()) =
+        axes_.transpose() * (Eigen::Map<const Vec3>(y) - Eigen::Map<const Vec3>(x));
+    return true;
+  }
+  bool MinusJacobian(const double* /*x*/, double* jacobian) const override {
+    Eigen::Map<Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>>(
+        jacobian, axes_.cols(), 3) = axes_.transpose();
+    return true;
+  }
+
+ private:
+  Eigen::Matrix<double, 3, Eigen::Dynamic> axes_;
+};
 
 int NumThreads(const BundleAdjustmentOptions& options) {
   return options.num_threads > 0
@@ -431,8 +462,15 @@ void SolveWithCeres(const BundleAdjustmentOptions& options,
     problem.SetManifold(x_q, &quaternion_manifold);
     if (!spec.prior_frame_rotation_free) problem.SetParameterBlockConstant(x_q);
   }
-  if (problem.HasParameterBlock(x_t) && !spec.prior_frame_translation_free) {
-    problem.SetParameterBlockConstant(x_t);
+  if (problem.HasParameterBlock(x_t)) {
+    const int free_axes = spec.prior_frame_translation_free_axes;
+    if (free_axes == 0) {
+      problem.SetParameterBlockConstant(x_t);
+    } else if (free_axes < 3) {
+      owned_manifolds.push_back(std::make_unique<TranslationSubspaceManifold>(
+          spec.prior_frame_translation_axes.leftCols(free_axes)));
+      problem.SetManifold(x_t, owned_manifolds.back().get());
+    }
   }
   // Gauge.
   if (!options.refine_frame_poses) {
@@ -611,9 +649,10 @@ void SolveWithSchur(const BundleAdjustmentOptions& options,
     problem.has_rig_from_prior = true;
     problem.rig_from_prior_rotation = state->rig_from_prior.rotation();
     problem.rig_from_prior_translation = state->rig_from_prior.translation();
+    problem.rig_from_prior_translation_axes = spec.prior_frame_translation_axes;
     for (int k = 0; k < 3; ++k) {
       problem.rig_from_prior_fixed[k] = !spec.prior_frame_rotation_free;
-      problem.rig_from_prior_fixed[3 + k] = !spec.prior_frame_translation_free;
+      problem.rig_from_prior_fixed[3 + k] = k >= spec.prior_frame_translation_free_axes;
     }
   }
   SchurBaOptions schur_options;
@@ -892,27 +931,62 @@ BundleAdjustmentStats RunBundleAdjustment(
     } else if (lidar_terms.empty()) {
       stats.prior_frame_note = "held: no LiDAR terms";
     } else {
-      double rotation_sigma = 0.0;
-      double translation_sigma = 0.0;
-      PriorFrameSigmas(spec, *state, &rotation_sigma, &translation_sigma);
+      // Rotation: refined when its weakest axis is determined. Translation:
+      // refined along the eigenvectors of its marginal covariance whose sigma
+      // is within the limit (uncorrelated with the held ones), held along the
+      // rest (a turn about one axis leaves t_X along that axis unseen).
+      Mat6 covariance;
+      Vec3 translation_sigmas = Vec3::Constant(std::numeric_limits<double>::infinity());
+      double rotation_sigma = std::numeric_limits<double>::infinity();
+      if (PriorFrameCovariance(spec, *state, &covariance)) {
+        const Eigen::SelfAdjointEigenSolver<Mat3> rotation(covariance.topLeftCorner<3, 3>());
+        const Eigen::SelfAdjointEigenSolver<Mat3> translation(covariance.bottomRightCorner<3, 3>());
+        rotation_sigma = std::sqrt(std::max(0.0, rotation.eigenvalues()(2)));
+        translation_sigmas = translation.eigenvalues().cwiseMax(0.0).cwiseSqrt();
+        spec.prior_frame_translation_axes = translation.eigenvectors();
+      }
       stats.prior_frame_rotation_sigma_deg = rotation_sigma * 180.0 / M_PI;
-      stats.prior_frame_translation_sigma_m = translation_sigma;
+      stats.prior_frame_translation_sigma_m = translation_sigmas(2);
+      stats.prior_frame_translation_sigmas_m = translation_sigmas;
       spec.prior_frame_rotation_free =
           stats.prior_frame_rotation_sigma_deg <= options.prior_frame_max_rotation_sigma_deg;
-      spec.prior_frame_translation_free =
-          translation_sigma <= options.prior_frame_max_translation_sigma_m;
+      while (spec.prior_frame_translation_free_axes < 3 &&
+             translation_sigmas(spec.prior_frame_translation_free_axes) <=
+                 options.prior_frame_max_translation_sigma_m) {
+        ++spec.prior_frame_translation_free_axes;
+      }
+      const int free_axes = spec.prior_frame_translation_free_axes;
+      std::string held;
+      if (free_axes > 0 && free_axes < 3) {
+        held = ", held along";
+        for (int k = free_axes; k < 3; ++k) {
+          const Vec3 axis = spec.prior_frame_translation_axes.col(k);
+          held += fmt::format("{} [{:.2f}, {:.2f}, {:.2f}]",
+                              k > free_axes ? " and" : "",
+                              axis.x(),
+                              axis.y(),
+                              axis.z());
+        }
+        held += " (rig axes)";
+      }
       stats.prior_frame_note = fmt::format(
-          "rotation {} (predicted sigma {:.4f} deg, limit {:.4f}), translation {} "
-          "(predicted sigma {:.2f} mm, limit {:.2f})",
+          "rotation {} (predicted sigma {:.4f} deg, limit {:.4f}), translation {} (predicted "
+          "sigma {:.2f} / {:.2f} / {:.2f} mm per direction, limit {:.2f}){}",
           spec.prior_frame_rotation_free ? "refined" : "held",
           stats.prior_frame_rotation_sigma_deg,
           options.prior_frame_max_rotation_sigma_deg,
-          spec.prior_frame_translation_free ? "refined" : "held",
-          translation_sigma * 1e3,
-          options.prior_frame_max_translation_sigma_m * 1e3);
+          free_axes == 3   ? "refined"
+          : free_axes == 0 ? "held"
+                           : fmt::format("refined along {} of 3 directions", free_axes),
+          translation_sigmas(0) * 1e3,
+          translation_sigmas(1) * 1e3,
+          translation_sigmas(2) * 1e3,
+          options.prior_frame_max_translation_sigma_m * 1e3,
+          held);
     }
     stats.prior_frame_rotation_refined = spec.prior_frame_rotation_free;
-    stats.prior_frame_translation_refined = spec.prior_frame_translation_free;
+    stats.prior_frame_translation_directions_refined = spec.prior_frame_translation_free_axes;
+    stats.prior_frame_translation_refined = spec.prior_frame_translation_free_axes > 0;
   }
 
   const bool refine_rig = state->has_rig && options.refine_cam_from_rig;

@@ -41,10 +41,13 @@
 //   and LiDAR terms at the initial values whose unknowns are X and the
 //   similarity of the world that the images leave free (scale, rotation,
 //   translation: the images fix the relative rig poses up to it) predicts X's
-//   marginal standard deviations (largest axis of the rotation / translation
-//   blocks); rotation and translation of X are each refined only when that is
-//   below prior_frame_max_rotation_sigma_deg / _translation_sigma_m (and
-//   never without LiDAR terms); otherwise that part is held at its value.
+//   marginal covariance. X's rotation is refined only when the largest axis
+//   of its block has a standard deviation below
+//   prior_frame_max_rotation_sigma_deg; X's translation is refined along
+//   each eigenvector of its block whose standard deviation is below
+//   prior_frame_max_translation_sigma_m and held along the others (a walk
+//   that turns only about the vertical determines the horizontal components
+//   of t_X but not the vertical one). Without LiDAR terms X is held.
 // Gauge (seven degrees of freedom of a similarity; fixed explicitly):
 //  - absolute pose: given by the priors when >= 3 registered frames have a
 //    position prior, or >= 1 has a position prior and >= 1 a rotation prior;
@@ -90,8 +93,10 @@ struct BundleAdjustmentOptions {
   // (largest axis) is below this (deg): half the 0.1 deg camera target, well
   // below a LiDAR extrinsic calibration's typical 0.1-0.5 deg error ...
   double prior_frame_max_rotation_sigma_deg = 0.05;
-  // ... and its translation only when that is below this (m).
-  double prior_frame_max_translation_sigma_m = 0.002;
+  // ... and its translation along the directions whose predicted standard
+  // deviation is below this (m): half the 1 cm camera target, below a LiDAR
+  // extrinsic calibration's typical 5-20 mm error.
+  double prior_frame_max_translation_sigma_m = 0.005;
   std::string loss_type = "cauchy";   // trivial | huber | cauchy (reprojection)
   double loss_scale = 1.0;            // px; residual scale of the robust loss
   int max_num_iterations = 100;       // Levenberg-Marquardt iterations
@@ -132,9 +137,11 @@ struct BundleAdjustmentStats {
   // after the adjustment (MapperState::rig_from_prior).
   bool prior_frame_used = false;  // the option was on and X entered the terms
   bool prior_frame_rotation_refined = false;
-  bool prior_frame_translation_refined = false;
+  bool prior_frame_translation_refined = false;        // along at least one direction
+  int prior_frame_translation_directions_refined = 0;  // 0-3 (header comment)
   double prior_frame_rotation_sigma_deg = 0.0;
-  double prior_frame_translation_sigma_m = 0.0;
+  double prior_frame_translation_sigma_m = 0.0;          // the largest of the three below
+  Vec3 prior_frame_translation_sigmas_m = Vec3::Zero();  // per direction, ascending
   std::string prior_frame_note;
   SE3 rig_from_prior;
   double initial_cost = 0.0;  // Ceres cost (0.5 sum rho) before / after

@@ -430,7 +430,8 @@ GlobalMapperResult RunGlobalMapper(const Database& database, const Rig* rig,
       LogInfo(
           "global_mapper: component {}: rig_from_prior (the priors' / LiDAR constraints' "
           "frame in the rig frame): rotation {:.4f} deg [{:.4f}, {:.4f}, {:.4f}] (rig axes), "
-          "translation [{:.2f}, {:.2f}, {:.2f}] mm; rotation {}, translation {}",
+          "translation [{:.2f}, {:.2f}, {:.2f}] mm; rotation {}, translation refined along {} "
+          "of 3 directions",
           c,
           omega_deg.norm(),
           omega_deg.x(),
@@ -440,7 +441,7 @@ GlobalMapperResult RunGlobalMapper(const Database& database, const Rig* rig,
           t_mm.y(),
           t_mm.z(),
           ba.prior_frame_rotation_refined ? "refined" : "held",
-          ba.prior_frame_translation_refined ? "refined" : "held");
+          ba.prior_frame_translation_directions_refined);
     }
     comp.dropped_weak_frames =
         DropWeakFrames(options.min_frame_observations, base.cameras, &state);

@@ -213,7 +213,8 @@ double EvaluatePoseTerm(const SchurBaPoseTerm& term,
 // jacobians != nullptr, one m x 3 tangent Jacobian per parameter group with
 // the group's first variable: frame f rotation 6f / translation 6f + 3, X
 // rotation x_offset / translation x_offset + 3 (blocks in the cost function's
-// order, SchurBaPoseTerm). Returns 0.5 |r|^2.
+// order, SchurBaPoseTerm); X's translation block along the columns of
+// x_translation_axes. Returns 0.5 |r|^2.
 struct TangentBlock {
   int offset = 0;
   Eigen::MatrixXd jacobian;
@@ -221,6 +222,7 @@ struct TangentBlock {
 double EvaluatePriorFrameTerm(const SchurBaPoseTerm& term,
                               const State& x,
                               int x_offset,
+                              const Mat3& x_translation_axes,
                               Eigen::VectorXd* residual,
                               std::vector<TangentBlock>* jacobians) {
   const int m = term.cost->num_residuals();
@@ -263,9 +265,13 @@ double EvaluatePriorFrameTerm(const SchurBaPoseTerm& term,
   for (size_t k = 0; k < groups.size(); ++k) {
     TangentBlock block;
     block.offset = groups[k].offset;
-    block.jacobian = groups[k].q != nullptr
-                         ? Eigen::MatrixXd(raw[k] * QuaternionTangentJacobian(*groups[k].q))
-                         : Eigen::MatrixXd(raw[k]);
+    if (groups[k].q != nullptr) {
+      block.jacobian = raw[k] * QuaternionTangentJacobian(*groups[k].q);
+    } else if (groups[k].offset == x_offset + 3) {
+      block.jacobian = raw[k] * x_translation_axes;
+    } else {
+      block.jacobian = raw[k];
+    }
     jacobians->push_back(std::move(block));
   }
   return 0.5 * residual->squaredNorm();
@@ -371,8 +377,10 @@ class Solver {
         std::plus<double>());
     Eigen::VectorXd r;
     for (const SchurBaPoseTerm& term : problem_.pose_terms) {
-      cost += term.uses_rig_from_prior ? EvaluatePriorFrameTerm(term, x, x_offset_, &r, nullptr)
-                                       : EvaluatePoseTerm(term, x, &r, nullptr);
+      cost += term.uses_rig_from_prior
+                  ? EvaluatePriorFrameTerm(
+                        term, x, x_offset_, problem_.rig_from_prior_translation_axes, &r, nullptr)
+                  : EvaluatePoseTerm(term, x, &r, nullptr);
     }
     return cost;
   }
@@ -431,7 +439,8 @@ class Solver {
     std::vector<TangentBlock> blocks;
     for (const SchurBaPoseTerm& term : problem_.pose_terms) {
       if (term.uses_rig_from_prior) {
-        cost += EvaluatePriorFrameTerm(term, x_, x_offset_, &r, &blocks);
+        cost += EvaluatePriorFrameTerm(
+            term, x_, x_offset_, problem_.rig_from_prior_translation_axes, &r, &blocks);
         for (const TangentBlock& a : blocks) {
           g_cam_.segment<3>(a.offset) += a.jacobian.transpose() * r;
           for (const TangentBlock& b : blocks) {
@@ -616,7 +625,7 @@ class Solver {
     }
     if (problem_.has_rig_from_prior) {
       x.qx = (so3::Exp(Vec3(dx_cam_.segment<3>(x_offset_))) * x.qx).normalized();
-      x.tx += dx_cam_.segment<3>(x_offset_ + 3);
+      x.tx += problem_.rig_from_prior_translation_axes * dx_cam_.segment<3>(x_offset_ + 3);
     }
     for (size_t c = 0; c < x.params.size(); ++c) {
       const auto& free = problem_.cameras[c].free_indices;

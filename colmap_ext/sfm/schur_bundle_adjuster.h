@@ -81,6 +81,9 @@ struct SchurBaProblem {
   bool has_rig_from_prior = false;
   Quat rig_from_prior_rotation = Quat::Identity();
   Vec3 rig_from_prior_translation = Vec3::Zero();
+  // X's translation tangent: t_X <- t_X + axes * dt (orthonormal columns), so
+  // that rig_from_prior_fixed can hold it along any directions.
+  Mat3 rig_from_prior_translation_axes = Mat3::Identity();
   std::array<bool, 6> rig_from_prior_fixed{};  // tangent coordinates held: [dtheta; dt]
 };
 
