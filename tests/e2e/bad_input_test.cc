@@ -49,23 +49,40 @@ using colmap::SyntheticDatasetOptions;
 
 // What a path option expects (which bad kinds apply to it).
 enum class PathType {
-  kFile,       // an input file: missing, empty, folder, truncated, random bytes
-  kDir,        // an input folder: missing, a file instead, an empty folder
-  kOutput,     // an output (folder or file): under a regular file (cannot be created)
+  kFile,    // an input file: missing, empty, folder, truncated, random bytes
+  kDir,     // an input folder: missing, a file instead, an empty folder
+  kOutput,  // an output (folder or file): under a regular file (cannot be created)
 };
 
-enum class Kind { kMissing, kEmpty, kDirectory, kTruncated, kRandom, kFile, kEmptyDir, kUnwritable };
+enum class Kind {
+  kMissing,
+  kEmpty,
+  kDirectory,
+  kTruncated,
+  kRandom,
+  kFile,
+  kEmptyDir,
+  kUnwritable
+};
 
 const char* KindName(Kind k) {
   switch (k) {
-    case Kind::kMissing: return "missing";
-    case Kind::kEmpty: return "empty file";
-    case Kind::kDirectory: return "folder for a file";
-    case Kind::kTruncated: return "truncated";
-    case Kind::kRandom: return "random bytes";
-    case Kind::kFile: return "file for a folder";
-    case Kind::kEmptyDir: return "empty folder";
-    case Kind::kUnwritable: return "unwritable output";
+    case Kind::kMissing:
+      return "missing";
+    case Kind::kEmpty:
+      return "empty file";
+    case Kind::kDirectory:
+      return "folder for a file";
+    case Kind::kTruncated:
+      return "truncated";
+    case Kind::kRandom:
+      return "random bytes";
+    case Kind::kFile:
+      return "file for a folder";
+    case Kind::kEmptyDir:
+      return "empty folder";
+    case Kind::kUnwritable:
+      return "unwritable output";
   }
   return "?";
 }
@@ -74,8 +91,10 @@ std::vector<Kind> KindsOf(PathType t) {
   switch (t) {
     case PathType::kFile:
       return {Kind::kMissing, Kind::kEmpty, Kind::kDirectory, Kind::kTruncated, Kind::kRandom};
-    case PathType::kDir: return {Kind::kMissing, Kind::kFile, Kind::kEmptyDir};
-    case PathType::kOutput: return {Kind::kUnwritable};
+    case PathType::kDir:
+      return {Kind::kMissing, Kind::kFile, Kind::kEmptyDir};
+    case PathType::kOutput:
+      return {Kind::kUnwritable};
   }
   return {};
 }
@@ -84,85 +103,123 @@ std::vector<Kind> KindsOf(PathType t) {
 // fixtures as {name} (see Fixtures::Resolve) and {out} for the cell's output.
 struct PathRow {
   std::string command;
-  std::string args;    // a valid command line (every input a good fixture)
   std::string option;  // the path option under test (its value in `args` is replaced)
   PathType type;
   std::string output_option;  // the option whose final name must not appear ("" none)
+  std::string args;           // a valid command line (every input a good fixture)
 };
 
 // clang-format off
 const std::vector<PathRow> kPathRows = {
   // simulate: the output folder is what it writes; inputs are read before.
-  {"simulate", "--output_path {out} --duration 1 --camera_rate 0 --lidars none --rig_path {rig} --config_path {config}",
-   "--rig_path", PathType::kFile, "--output_path"},
-  {"simulate", "--output_path {out} --duration 1 --camera_rate 0 --lidars none --trajectory_path {tum} --config_path {config}",
-   "--trajectory_path", PathType::kFile, "--output_path"},
-  {"simulate", "--output_path {out} --duration 1 --camera_rate 0 --lidars none --config_path {config}",
-   "--config_path", PathType::kFile, "--output_path"},
-  {"simulate", "--output_path {out} --duration 1 --camera_rate 0 --lidars none",
-   "--output_path", PathType::kOutput, ""},
-  {"lio", "--input_path {seq} --output_path {out}", "--input_path", PathType::kDir, "--output_path"},
-  {"lio", "--input_path {seq} --output_path {out}", "--output_path", PathType::kOutput, ""},
-  {"lio", "--input_path {seq} --output_path {out} --config_path {config}",
-   "--config_path", PathType::kFile, "--output_path"},
-  {"evaluate", "--reference_path {tum} --estimate_path {tum} --output_path {out}",
-   "--reference_path", PathType::kFile, "--output_path"},
-  {"evaluate", "--reference_path {tum} --estimate_path {tum} --output_path {out}",
-   "--estimate_path", PathType::kFile, "--output_path"},
-  {"evaluate", "--reference_path {tum} --estimate_path {tum} --output_path {out}",
-   "--output_path", PathType::kOutput, ""},
-  {"icp", "--source_path {pcd} --target_path {pcd} --output_path {out}", "--source_path", PathType::kFile, "--output_path"},
-  {"icp", "--source_path {pcd} --target_path {ply} --output_path {out}", "--target_path", PathType::kFile, "--output_path"},
-  {"icp", "--source_path {pcd} --target_path {pcd} --init_path {init} --output_path {out}", "--init_path", PathType::kFile, "--output_path"},
-  {"icp", "--source_path {pcd} --target_path {pcd} --output_path {out}", "--output_path", PathType::kOutput, ""},
-  {"fusion", "--input_path {seq} --output_path {out} --pose_source groundtruth", "--input_path", PathType::kDir, "--output_path"},
-  {"fusion", "--input_path {seq} --output_path {out} --pose_source groundtruth --intrinsics_path {rgbd_camera}",
-   "--intrinsics_path", PathType::kFile, "--output_path"},
-  {"fusion", "--input_path {seq} --output_path {out} --pose_source groundtruth", "--output_path", PathType::kOutput, ""},
-  {"pose_graph", "--input_path {g2o} --output_path {out}", "--input_path", PathType::kFile, "--output_path"},
-  {"pose_graph", "--input_path {g2o} --output_path {out}", "--output_path", PathType::kOutput, ""},
-  {"pose_slam", "--input_path {seq} --lio_path {lio} --output_path {out}", "--input_path", PathType::kDir, "--output_path"},
-  {"pose_slam", "--input_path {seq} --lio_path {lio} --output_path {out}", "--lio_path", PathType::kDir, "--output_path"},
-  {"pose_slam", "--input_path {seq} --lio_path {lio} --output_path {out}", "--output_path", PathType::kOutput, ""},
-  {"model_converter", "--input_path {model} --output_path {out} --output_type TXT", "--input_path", PathType::kDir, "--output_path"},
-  {"model_converter", "--input_path {model} --output_path {out} --output_type TXT", "--output_path", PathType::kOutput, ""},
-  {"model_converter", "--input_path {model} --output_path {out}.ply --output_type PLY", "--output_path", PathType::kOutput, ""},
-  {"model_analyzer", "--path {model}", "--path", PathType::kDir, ""},
-  {"database_info", "--database_path {db}", "--database_path", PathType::kFile, ""},
-  {"bag_importer", "--input_path {bag} --output_path {out} --rig_path {rig}", "--input_path", PathType::kFile, "--output_path"},
-  {"bag_importer", "--input_path {bag} --output_path {out} --rig_path {rig}", "--rig_path", PathType::kFile, "--output_path"},
-  {"bag_importer", "--input_path {bag} --output_path {out} --rig_path {rig} --preset {preset}", "--preset", PathType::kFile, "--output_path"},
-  {"bag_importer", "--input_path {bag} --output_path {out} --rig_path {rig}", "--output_path", PathType::kOutput, ""},
-  {"bag_exporter", "--input_path {seq} --output_path {out}.bag", "--input_path", PathType::kDir, "--output_path"},
-  {"bag_exporter", "--input_path {seq} --output_path {out}.bag", "--output_path", PathType::kOutput, ""},
-  {"kitti_importer", "--input_path {kitti} --output_path {out}", "--input_path", PathType::kDir, "--output_path"},
-  {"kitti_importer", "--input_path {kitti} --output_path {out} --poses_path {kitti_poses}", "--poses_path", PathType::kFile, "--output_path"},
-  {"kitti_importer", "--input_path {kitti} --output_path {out}", "--output_path", PathType::kOutput, ""},
-  {"database_importer", "--input_path {seq} --lio_path {lio} --pose_slam_path {ps} --output_path {out}",
-   "--input_path", PathType::kDir, "--output_path"},
-  {"database_importer", "--input_path {seq} --lio_path {lio} --pose_slam_path {ps} --output_path {out}",
-   "--lio_path", PathType::kDir, "--output_path"},
-  {"database_importer", "--input_path {seq} --lio_path {lio} --pose_slam_path {ps} --output_path {out}",
-   "--pose_slam_path", PathType::kDir, "--output_path"},
-  {"database_importer", "--input_path {seq} --image_path {seq} --lio_path {lio} --pose_slam_path {ps} --output_path {out}",
-   "--image_path", PathType::kDir, "--output_path"},
-  {"database_importer", "--input_path {seq} --lio_path {lio} --pose_slam_path {ps} --output_path {out}",
-   "--output_path", PathType::kOutput, ""},
-  {"global_mapper", "--database_path {syn_db} --output_path {out}", "--database_path", PathType::kFile, "--output_path"},
-  {"global_mapper", "--database_path {syn_db} --output_path {out} --image_path {seq}", "--image_path", PathType::kDir, "--output_path"},
-  {"global_mapper", "--database_path {syn_db} --output_path {out} --rig_path {syn_rig}", "--rig_path", PathType::kFile, "--output_path"},
-  {"global_mapper", "--database_path {syn_db} --output_path {out} --lidar_constraints_path {syn_constraints}",
-   "--lidar_constraints_path", PathType::kFile, "--output_path"},
-  {"global_mapper", "--database_path {syn_db} --output_path {out}", "--output_path", PathType::kOutput, ""},
-  {"pipeline", "--input_path {seq} --output_path {out}", "--input_path", PathType::kDir, "--output_path"},
-  {"pipeline", "--input_path {bag} --output_path {out} --rig_path {rig}", "--rig_path", PathType::kFile, "--output_path"},
-  {"pipeline", "--input_path {seq} --output_path {out}", "--output_path", PathType::kOutput, ""},
-  {"model_evaluator", "--model_path {model} --reference_path {model} --output_path {out}.json",
-   "--model_path", PathType::kDir, "--output_path"},
-  {"model_evaluator", "--model_path {model} --reference_path {model} --output_path {out}.json",
-   "--reference_path", PathType::kDir, "--output_path"},
-  {"model_evaluator", "--model_path {model} --reference_path {model} --output_path {out}.json",
-   "--output_path", PathType::kOutput, ""},
+  {"simulate", "--rig_path", PathType::kFile, "--output_path",
+   "--output_path {out} --duration 1 --camera_rate 0 --lidars none --rig_path {rig} --config_path "
+   "{config}"},
+  {"simulate", "--trajectory_path", PathType::kFile, "--output_path",
+   "--output_path {out} --duration 1 --camera_rate 0 --lidars none --trajectory_path {tum} "
+   "--config_path {config}"},
+  {"simulate", "--config_path", PathType::kFile, "--output_path",
+   "--output_path {out} --duration 1 --camera_rate 0 --lidars none --config_path {config}"},
+  {"simulate", "--output_path", PathType::kOutput, "",
+   "--output_path {out} --duration 1 --camera_rate 0 --lidars none"},
+  {"lio", "--input_path", PathType::kDir, "--output_path",
+   "--input_path {seq} --output_path {out}"},
+  {"lio", "--output_path", PathType::kOutput, "",
+   "--input_path {seq} --output_path {out}"},
+  {"lio", "--config_path", PathType::kFile, "--output_path",
+   "--input_path {seq} --output_path {out} --config_path {config}"},
+  {"evaluate", "--reference_path", PathType::kFile, "--output_path",
+   "--reference_path {tum} --estimate_path {tum} --output_path {out}"},
+  {"evaluate", "--estimate_path", PathType::kFile, "--output_path",
+   "--reference_path {tum} --estimate_path {tum} --output_path {out}"},
+  {"evaluate", "--output_path", PathType::kOutput, "",
+   "--reference_path {tum} --estimate_path {tum} --output_path {out}"},
+  {"icp", "--source_path", PathType::kFile, "--output_path",
+   "--source_path {pcd} --target_path {pcd} --output_path {out}"},
+  {"icp", "--target_path", PathType::kFile, "--output_path",
+   "--source_path {pcd} --target_path {ply} --output_path {out}"},
+  {"icp", "--init_path", PathType::kFile, "--output_path",
+   "--source_path {pcd} --target_path {pcd} --init_path {init} --output_path {out}"},
+  {"icp", "--output_path", PathType::kOutput, "",
+   "--source_path {pcd} --target_path {pcd} --output_path {out}"},
+  {"fusion", "--input_path", PathType::kDir, "--output_path",
+   "--input_path {seq} --output_path {out} --pose_source groundtruth"},
+  {"fusion", "--intrinsics_path", PathType::kFile, "--output_path",
+   "--input_path {seq} --output_path {out} --pose_source groundtruth --intrinsics_path "
+   "{rgbd_camera}"},
+  {"fusion", "--output_path", PathType::kOutput, "",
+   "--input_path {seq} --output_path {out} --pose_source groundtruth"},
+  {"pose_graph", "--input_path", PathType::kFile, "--output_path",
+   "--input_path {g2o} --output_path {out}"},
+  {"pose_graph", "--output_path", PathType::kOutput, "",
+   "--input_path {g2o} --output_path {out}"},
+  {"pose_slam", "--input_path", PathType::kDir, "--output_path",
+   "--input_path {seq} --lio_path {lio} --output_path {out}"},
+  {"pose_slam", "--lio_path", PathType::kDir, "--output_path",
+   "--input_path {seq} --lio_path {lio} --output_path {out}"},
+  {"pose_slam", "--output_path", PathType::kOutput, "",
+   "--input_path {seq} --lio_path {lio} --output_path {out}"},
+  {"model_converter", "--input_path", PathType::kDir, "--output_path",
+   "--input_path {model} --output_path {out} --output_type TXT"},
+  {"model_converter", "--output_path", PathType::kOutput, "",
+   "--input_path {model} --output_path {out} --output_type TXT"},
+  {"model_converter", "--output_path", PathType::kOutput, "",
+   "--input_path {model} --output_path {out}.ply --output_type PLY"},
+  {"model_analyzer", "--path", PathType::kDir, "",
+   "--path {model}"},
+  {"database_info", "--database_path", PathType::kFile, "",
+   "--database_path {db}"},
+  {"bag_importer", "--input_path", PathType::kFile, "--output_path",
+   "--input_path {bag} --output_path {out} --rig_path {rig}"},
+  {"bag_importer", "--rig_path", PathType::kFile, "--output_path",
+   "--input_path {bag} --output_path {out} --rig_path {rig}"},
+  {"bag_importer", "--preset", PathType::kFile, "--output_path",
+   "--input_path {bag} --output_path {out} --rig_path {rig} --preset {preset}"},
+  {"bag_importer", "--output_path", PathType::kOutput, "",
+   "--input_path {bag} --output_path {out} --rig_path {rig}"},
+  {"bag_exporter", "--input_path", PathType::kDir, "--output_path",
+   "--input_path {seq} --output_path {out}.bag"},
+  {"bag_exporter", "--output_path", PathType::kOutput, "",
+   "--input_path {seq} --output_path {out}.bag"},
+  {"kitti_importer", "--input_path", PathType::kDir, "--output_path",
+   "--input_path {kitti} --output_path {out}"},
+  {"kitti_importer", "--poses_path", PathType::kFile, "--output_path",
+   "--input_path {kitti} --output_path {out} --poses_path {kitti_poses}"},
+  {"kitti_importer", "--output_path", PathType::kOutput, "",
+   "--input_path {kitti} --output_path {out}"},
+  {"database_importer", "--input_path", PathType::kDir, "--output_path",
+   "--input_path {seq} --lio_path {lio} --pose_slam_path {ps} --output_path {out}"},
+  {"database_importer", "--lio_path", PathType::kDir, "--output_path",
+   "--input_path {seq} --lio_path {lio} --pose_slam_path {ps} --output_path {out}"},
+  {"database_importer", "--pose_slam_path", PathType::kDir, "--output_path",
+   "--input_path {seq} --lio_path {lio} --pose_slam_path {ps} --output_path {out}"},
+  {"database_importer", "--image_path", PathType::kDir, "--output_path",
+   "--input_path {seq} --image_path {seq} --lio_path {lio} --pose_slam_path {ps} --output_path "
+   "{out}"},
+  {"database_importer", "--output_path", PathType::kOutput, "",
+   "--input_path {seq} --lio_path {lio} --pose_slam_path {ps} --output_path {out}"},
+  {"global_mapper", "--database_path", PathType::kFile, "--output_path",
+   "--database_path {syn_db} --output_path {out}"},
+  {"global_mapper", "--image_path", PathType::kDir, "--output_path",
+   "--database_path {syn_db} --output_path {out} --image_path {seq}"},
+  {"global_mapper", "--rig_path", PathType::kFile, "--output_path",
+   "--database_path {syn_db} --output_path {out} --rig_path {syn_rig}"},
+  {"global_mapper", "--lidar_constraints_path", PathType::kFile, "--output_path",
+   "--database_path {syn_db} --output_path {out} --lidar_constraints_path {syn_constraints}"},
+  {"global_mapper", "--output_path", PathType::kOutput, "",
+   "--database_path {syn_db} --output_path {out}"},
+  {"pipeline", "--input_path", PathType::kDir, "--output_path",
+   "--input_path {seq} --output_path {out}"},
+  {"pipeline", "--rig_path", PathType::kFile, "--output_path",
+   "--input_path {bag} --output_path {out} --rig_path {rig}"},
+  {"pipeline", "--output_path", PathType::kOutput, "",
+   "--input_path {seq} --output_path {out}"},
+  {"model_evaluator", "--model_path", PathType::kDir, "--output_path",
+   "--model_path {model} --reference_path {model} --output_path {out}.json"},
+  {"model_evaluator", "--reference_path", PathType::kDir, "--output_path",
+   "--model_path {model} --reference_path {model} --output_path {out}.json"},
+  {"model_evaluator", "--output_path", PathType::kOutput, "",
+   "--model_path {model} --reference_path {model} --output_path {out}.json"},
 };
 
 // Cells where the bad input is legitimate: accepted (exit 0) with a warning.
@@ -227,7 +284,8 @@ std::string OptionValue(const std::string& args, const std::string& option) {
   return "";
 }
 
-std::string WithOption(const std::string& args, const std::string& option,
+std::string WithOption(const std::string& args,
+                       const std::string& option,
                        const std::string& value) {
   std::istringstream in(args);
   std::string token;
@@ -268,7 +326,8 @@ class BadInput : public ::testing::Test {
       if (code != 0) ADD_FAILURE() << "fixture: lisfm " << args << " -> " << code << "\n" << out;
     };
     // A 6 s walk: LiDAR, IMU, five cameras at 0.5 Hz and an RGB-D camera at 2 Hz.
-    lisfm("simulate --output_path " + d + "/seq --duration 6 --camera_rate 0.5 --rgbd 1 "
+    lisfm("simulate --output_path " + d +
+          "/seq --duration 6 --camera_rate 0.5 --rgbd 1 "
           "--rgbd_rate 2 --error_sources none");
     lisfm("lio --input_path " + d + "/seq --output_path " + d +
           "/lio --Lio.keyframe_distance 0.2 --Lio.keyframe_angle_deg 5");
@@ -311,8 +370,7 @@ class BadInput : public ::testing::Test {
     }
     test::WriteText(d + "/kitti/times.txt", "0.000000e+00\n1.000000e-01\n");
     test::WriteText(d + "/kitti/calib.txt", "Tr: 1 0 0 0 0 1 0 0 0 0 1 0\n");
-    test::WriteText(f["kitti_poses"],
-                    "1 0 0 0 0 1 0 0 0 0 1 0\n1 0 0 0.5 0 1 0 0 0 0 1 0\n");
+    test::WriteText(f["kitti_poses"], "1 0 0 0 0 1 0 0 0 0 1 0\n1 0 0 0.5 0 1 0 0 0 0 1 0\n");
     // A synthetic rig recording as COLMAP model and as database with matches,
     // its rig and LiDAR constraints (as in global_mapper_command_test).
     SyntheticDatasetOptions o;
@@ -361,9 +419,14 @@ std::string MakeBad(Kind k, const std::string& cell, const std::string& good, st
   const std::string bad = cell + "/" + (base.empty() ? "bad" : base);
   *named = bad;
   switch (k) {
-    case Kind::kMissing: break;
-    case Kind::kEmpty: WriteBytes(bad, ""); break;
-    case Kind::kDirectory: fs::create_directories(bad); break;
+    case Kind::kMissing:
+      break;
+    case Kind::kEmpty:
+      WriteBytes(bad, "");
+      break;
+    case Kind::kDirectory:
+      fs::create_directories(bad);
+      break;
     case Kind::kTruncated: {
       // Cut at half, then back to the last separator of that line: a text
       // record loses its last field (a record cut inside a number could still
@@ -384,8 +447,12 @@ std::string MakeBad(Kind k, const std::string& cell, const std::string& good, st
       WriteBytes(bad, bytes);
       break;
     }
-    case Kind::kFile: WriteBytes(bad, "not a folder\n"); break;
-    case Kind::kEmptyDir: fs::create_directories(bad); break;
+    case Kind::kFile:
+      WriteBytes(bad, "not a folder\n");
+      break;
+    case Kind::kEmptyDir:
+      fs::create_directories(bad);
+      break;
     case Kind::kUnwritable: {
       // Below a regular file: no folder or file can be created there (even as root).
       WriteBytes(cell + "/blocker", "a file, not a folder\n");
@@ -455,11 +522,15 @@ TEST_F(BadInput, EveryPathOptionOfEveryCommand) {
   });
   int passed = 0;
   for (const Cell& c : cells) {
-    if (c.problem.empty()) ++passed;
-    else ADD_FAILURE() << c.problem;
+    if (c.problem.empty())
+      ++passed;
+    else
+      ADD_FAILURE() << c.problem;
   }
-  std::printf("bad input, path options: %zu rows, %zu cells, %d passed\n", kPathRows.size(),
-              cells.size(), passed);
+  std::printf("bad input, path options: %zu rows, %zu cells, %d passed\n",
+              kPathRows.size(),
+              cells.size(),
+              passed);
 }
 
 // A numeric option as `-h` prints it: `--name  (=default, RANGE) ...`.
@@ -512,7 +583,8 @@ std::vector<std::string> BadValues(const std::string& range) {
     bad.push_back(m[1]);
   } else if (std::regex_match(range, m, std::regex("(<|<=) " + num))) {
     bad.push_back("1e30");
-  } else if (std::regex_match(range, m, std::regex("in ([\\[(])" + num + ", " + num + "([\\])])"))) {
+  } else if (std::regex_match(
+                 range, m, std::regex("in ([\\[(])" + num + ", " + num + "([\\])])"))) {
     bad.push_back("1e30");
   } else if (std::regex_match(range, m, std::regex(num + " or >= " + num))) {
     bad.push_back(Format((Number(m[1]) + Number(m[2])) / 2));
@@ -587,27 +659,35 @@ TEST(BadInputOptions, EveryNumericOptionOutOfRange) {
     }
   }
   ForEachOnTwoThreads(cells.size(), [&](size_t i) {
-      Cell& c = cells[i];
-      fs::create_directories(c.scratch);
-      const RunResult r = RunLisfm(c.args, c.scratch);
-      const std::vector<std::string> errors = ErrorLines(r.err);
-      if (HasSanitizerReport(r.err)) c.problem = "sanitizer report";
-      else if (r.code != 2) c.problem = "exit " + std::to_string(r.code) + ", expected 2";
-      else if (errors.size() != 1) c.problem = std::to_string(errors.size()) + " error: lines";
-      else if (errors[0].find(c.option) == std::string::npos)
-        c.problem = "the error line does not name " + c.option;
-      else if (fs::exists(c.scratch + "/out")) c.problem = "wrote " + c.scratch + "/out";
-      if (!c.problem.empty()) c.problem += "\n    lisfm " + c.args + "\n    stderr: " + r.err;
-      fs::remove_all(c.scratch);
+    Cell& c = cells[i];
+    fs::create_directories(c.scratch);
+    const RunResult r = RunLisfm(c.args, c.scratch);
+    const std::vector<std::string> errors = ErrorLines(r.err);
+    if (HasSanitizerReport(r.err))
+      c.problem = "sanitizer report";
+    else if (r.code != 2)
+      c.problem = "exit " + std::to_string(r.code) + ", expected 2";
+    else if (errors.size() != 1)
+      c.problem = std::to_string(errors.size()) + " error: lines";
+    else if (errors[0].find(c.option) == std::string::npos)
+      c.problem = "the error line does not name " + c.option;
+    else if (fs::exists(c.scratch + "/out"))
+      c.problem = "wrote " + c.scratch + "/out";
+    if (!c.problem.empty()) c.problem += "\n    lisfm " + c.args + "\n    stderr: " + r.err;
+    fs::remove_all(c.scratch);
   });
   int passed = 0;
   for (const Cell& c : cells) {
-    if (c.problem.empty()) ++passed;
-    else ADD_FAILURE() << c.label << ": " << c.problem;
+    if (c.problem.empty())
+      ++passed;
+    else
+      ADD_FAILURE() << c.label << ": " << c.problem;
   }
   EXPECT_GT(options, 100);
-  std::printf("bad input, numeric options: %d options, %zu cells, %d passed\n", options,
-              cells.size(), passed);
+  std::printf("bad input, numeric options: %d options, %zu cells, %d passed\n",
+              options,
+              cells.size(),
+              passed);
 }
 
 }  // namespace
