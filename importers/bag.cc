@@ -208,8 +208,8 @@ BagPreset ReadBagPreset(const std::string& path) {
     const YAML::Node f = doc["lidar_fields"];
     if (f && !f.IsMap()) {
       throw InputError(path,
-                       fmt::format("line {}", f.Mark().line + 1),
-                       "lidar_fields: expected a mapping (time, time_type, ...), found " +
+                       "lidar_fields",
+                       "expected a mapping (time, time_type, ...), found " +
                            std::string(f.IsNull() ? "nothing" : "a list or a scalar"));
     }
     if (f) {
