@@ -58,6 +58,10 @@ int RunDatabaseImporter(int argc, char** argv) {
   if (input.input_type == "sequence") {
     if (input.pose_slam_path.empty()) throw UsageError("--pose_slam_path is required");
     if (input.lio_path.empty()) throw UsageError("--lio_path is required");
+    // Read only when there are constraints; checked always, so that a wrong
+    // folder is reported whatever the constraints hold.
+    CheckDirExists(input.lio_path, "--lio_path folder");
+    CheckDirExists(JoinPaths(input.lio_path, "keyframes"), "lio keyframes folder");
   }
   OutputFolder output(output_path, overwrite);  // checked before the work
 

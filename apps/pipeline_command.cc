@@ -1358,6 +1358,15 @@ int Pipeline::Run(int argc, char** argv) {
       break;
     }
   }
+  // --rig_path is read by a stage (bag_importer); read it now, so that a bad rig
+  // fails before the output folder exists.
+  if (!rig_path.empty()) {
+    if (DirExists(rig_path)) {
+      LoadHiltiCalibration(rig_path);
+    } else {
+      ReadRigYaml(rig_path);
+    }
+  }
   // The output folder: new, empty, or an earlier pipeline output.
   const std::string marker = JoinPaths(output_path, ".lisfm_pipeline");
   if (FileExists(output_path)) {

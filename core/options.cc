@@ -413,7 +413,12 @@ void OptionManager::ApplyConfigFile(const std::string& path) {
     throw InputError(path, "line " + std::to_string(e.mark.line + 1),
                      "malformed YAML: " + e.msg);
   }
-  if (root.IsNull()) return;
+  if (root.IsNull()) {
+    // An empty file (or one holding only comments) sets no option: legitimate, but
+    // most likely not what was meant.
+    LogWarning("{}: the config file sets no option", path);
+    return;
+  }
   if (!root.IsMap()) throw InputError(path, "", "expected a mapping of option names to values");
   std::vector<std::pair<std::string, YAML::Node>> items;
   FlattenYaml(root, "", &items);

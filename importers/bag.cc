@@ -206,6 +206,12 @@ BagPreset ReadBagPreset(const std::string& path) {
       }
     }
     const YAML::Node f = doc["lidar_fields"];
+    if (f && !f.IsMap()) {
+      throw InputError(path,
+                       "lidar_fields",
+                       "expected a mapping (time, time_type, ...), found " +
+                           std::string(f.IsNull() ? "nothing" : "a list or a scalar"));
+    }
     if (f) {
       if (f["time"]) p.lidar_fields.time.name = f["time"].as<std::string>();
       if (f["time_type"]) {

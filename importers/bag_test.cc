@@ -441,6 +441,10 @@ TEST(BagPresetTest, BadPresetsNameFileAndKey) {
   }
   test::WriteText(path, "lidar_topics: [/p]\n");
   EXPECT_THROW(ReadBagPreset(path), InputError);  // no imu_topic
+  // A preset cut after "lidar_fields:" (no mapping) must not fall back to the defaults.
+  test::WriteText(path, "imu_topic: /imu\nlidar_topics: [/p]\nlidar_fields:\n");
+  EXPECT_TRUE(test::ThrowsInputError([&] { ReadBagPreset(path); },
+                                     {path, "lidar_fields", "expected a mapping"}));
 }
 
 }  // namespace
