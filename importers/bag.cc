@@ -106,8 +106,8 @@ std::string ReadFilePrefix(const std::string& path, size_t n) {
 // and a chunk's uncompressed `size` before decompressing it, so a damaged length
 // must be refused here. Header fields: u32 length, "name=value".
 std::string BagRecordError(const std::string& path) {
-  constexpr uint64_t kMaxHeaderBytes = uint64_t{1} << 20;   // headers hold a few fields
-  constexpr uint64_t kMaxChunkBytes = uint64_t{1} << 30;    // uncompressed chunk (1 GiB)
+  constexpr uint64_t kMaxHeaderBytes = uint64_t{1} << 20;  // headers hold a few fields
+  constexpr uint64_t kMaxChunkBytes = uint64_t{1} << 30;   // uncompressed chunk (1 GiB)
   std::ifstream in(path, std::ios::binary);
   in.seekg(0, std::ios::end);
   const uint64_t file_size = static_cast<uint64_t>(std::max<std::streamoff>(in.tellg(), 0));
@@ -123,15 +123,19 @@ std::string BagRecordError(const std::string& path) {
     }
     if (header_len > kMaxHeaderBytes || header_len > file_size - pos - 4) {
       return fmt::format("record at byte {}: header of {} bytes, {} bytes left in the file",
-                         pos, header_len, file_size - pos - 4);
+                         pos,
+                         header_len,
+                         file_size - pos - 4);
     }
     const uint64_t data_at = pos + 4 + header_len;
     if (file_size - data_at < 4 || !read_u32(data_at, &data_len)) {
       return fmt::format("record at byte {}: the file ends in its data length", pos);
     }
     if (data_len > file_size - data_at - 4) {
-      return fmt::format("record at byte {}: data of {} bytes, {} bytes left in the file", pos,
-                         data_len, file_size - data_at - 4);
+      return fmt::format("record at byte {}: data of {} bytes, {} bytes left in the file",
+                         pos,
+                         data_len,
+                         file_size - data_at - 4);
     }
     std::string header(header_len, '\0');
     in.seekg(static_cast<std::streamoff>(pos + 4));
@@ -141,8 +145,8 @@ std::string BagRecordError(const std::string& path) {
       uint32_t field_len = 0;
       std::memcpy(&field_len, header.data() + i, 4);
       if (field_len > header.size() - i - 4) {
-        return fmt::format("record at byte {}: header field of {} bytes past the header", pos,
-                           field_len);
+        return fmt::format(
+            "record at byte {}: header field of {} bytes past the header", pos, field_len);
       }
       const std::string field = header.substr(i + 4, field_len);
       const size_t eq = field.find('=');
@@ -153,9 +157,13 @@ std::string BagRecordError(const std::string& path) {
       uint32_t size = 0;
       if (fields["size"].size() == 4) std::memcpy(&size, fields["size"].data(), 4);
       if (size > kMaxChunkBytes || (fields["compression"] == "none" && size != data_len)) {
-        return fmt::format("chunk at byte {}: {} uncompressed bytes announced for {} bytes of "
-                           "'{}' data",
-                           pos, size, data_len, fields["compression"]);
+        return fmt::format(
+            "chunk at byte {}: {} uncompressed bytes announced for {} bytes of "
+            "'{}' data",
+            pos,
+            size,
+            data_len,
+            fields["compression"]);
       }
     }
     pos = data_at + 4 + data_len;

@@ -113,8 +113,7 @@ RosMessageDefinition::RosMessageDefinition(const std::string& datatype,
         if (n.size() > 9 || (!n.empty() && std::stoul(n) > kMaxFixedArrayLength)) {
           throw InputError(where,
                            fmt::format("message definition of {} line {}", datatype, no),
-                           fmt::format("array length in '{}' exceeds {}", t,
-                                       kMaxFixedArrayLength));
+                           fmt::format("array length in '{}' exceeds {}", t, kMaxFixedArrayLength));
         }
         f.fixed_count = n.empty() ? 0 : static_cast<uint32_t>(std::stoul(n));
         t = t.substr(0, bracket);
@@ -150,9 +149,10 @@ RosMessageDefinition::RosMessageDefinition(const std::string& datatype,
     for (const RosMsgField& f : types_.at(type)) {
       if (IsBuiltin(f.type) || state[f.type] == 2) continue;
       if (state[f.type] == 1) {
-        throw InputError(where,
-                         "message definition of " + datatype,
-                         fmt::format("type {} contains itself (field {}.{})", f.type, type, f.name));
+        throw InputError(
+            where,
+            "message definition of " + datatype,
+            fmt::format("type {} contains itself (field {}.{})", f.type, type, f.name));
       }
       visit(f.type);
     }
@@ -175,8 +175,10 @@ std::optional<size_t> RosMessageDefinition::FixedSize(const RosMsgField& field) 
   if (count > 0 && *one > kMaxFixedMessageBytes / count) {
     throw InputError(where_,
                      "message definition of " + datatype_,
-                     fmt::format("field {} of type {} holds more than {} bytes", field.name,
-                                 field.type, kMaxFixedMessageBytes));
+                     fmt::format("field {} of type {} holds more than {} bytes",
+                                 field.name,
+                                 field.type,
+                                 kMaxFixedMessageBytes));
   }
   return *one * count;
 }
@@ -190,10 +192,10 @@ std::optional<size_t> RosMessageDefinition::FixedSize(const std::string& type) c
     if (!s) return std::nullopt;
     total += *s;
     if (total > kMaxFixedMessageBytes) {
-      throw InputError(where_,
-                       "message definition of " + datatype_,
-                       fmt::format("type {} holds more than {} bytes", type,
-                                   kMaxFixedMessageBytes));
+      throw InputError(
+          where_,
+          "message definition of " + datatype_,
+          fmt::format("type {} holds more than {} bytes", type, kMaxFixedMessageBytes));
     }
   }
   return total;

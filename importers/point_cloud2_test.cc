@@ -244,8 +244,7 @@ TEST(PointCloud2Test, PointTimesBeyondTheInt64StampRangeAreInputErrors) {
       DecodePointCloud2(msg, mapping, "b.bag: topic /p message 0");
       ADD_FAILURE() << "no error for t = " << t;
     } catch (const InputError& e) {
-      EXPECT_NE(std::string(e.what()).find("from header.stamp is out of range"),
-                std::string::npos)
+      EXPECT_NE(std::string(e.what()).find("from header.stamp is out of range"), std::string::npos)
           << e.what();
     }
   }

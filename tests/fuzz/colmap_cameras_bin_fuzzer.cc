@@ -1,4 +1,5 @@
-// Fuzz target colmap_cameras_bin: a COLMAP cameras.bin through ReadCamerasBinary into an empty reconstruction, then Reconstruction::Validate.
+// Fuzz target colmap_cameras_bin: a COLMAP cameras.bin through ReadCamerasBinary into an empty
+// reconstruction, then Reconstruction::Validate.
 #include <cstddef>
 #include <cstdint>
 #include <string>

@@ -1,4 +1,5 @@
-// Fuzz target colmap_cameras_txt: a COLMAP cameras.txt through ReadCamerasText into an empty reconstruction, then Reconstruction::Validate.
+// Fuzz target colmap_cameras_txt: a COLMAP cameras.txt through ReadCamerasText into an empty
+// reconstruction, then Reconstruction::Validate.
 #include <cstddef>
 #include <cstdint>
 #include <string>

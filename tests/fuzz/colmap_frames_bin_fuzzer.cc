@@ -1,4 +1,5 @@
-// Fuzz target colmap_frames_bin: a COLMAP frames.bin through ReadFramesBinary into an empty reconstruction, then Reconstruction::Validate.
+// Fuzz target colmap_frames_bin: a COLMAP frames.bin through ReadFramesBinary into an empty
+// reconstruction, then Reconstruction::Validate.
 #include <cstddef>
 #include <cstdint>
 #include <string>

@@ -1,4 +1,5 @@
-// Fuzz target colmap_images_bin: a COLMAP images.bin through ReadImagesBinary into an empty reconstruction, then Reconstruction::Validate.
+// Fuzz target colmap_images_bin: a COLMAP images.bin through ReadImagesBinary into an empty
+// reconstruction, then Reconstruction::Validate.
 #include <cstddef>
 #include <cstdint>
 #include <string>

@@ -1,4 +1,5 @@
-// Fuzz target colmap_points3d_bin: a COLMAP points3D.bin through ReadPoints3DBinary into an empty reconstruction, then Reconstruction::Validate.
+// Fuzz target colmap_points3d_bin: a COLMAP points3D.bin through ReadPoints3DBinary into an empty
+// reconstruction, then Reconstruction::Validate.
 #include <cstddef>
 #include <cstdint>
 #include <string>

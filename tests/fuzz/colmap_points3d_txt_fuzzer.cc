@@ -1,4 +1,5 @@
-// Fuzz target colmap_points3d_txt: a COLMAP points3D.txt through ReadPoints3DText into an empty reconstruction, then Reconstruction::Validate.
+// Fuzz target colmap_points3d_txt: a COLMAP points3D.txt through ReadPoints3DText into an empty
+// reconstruction, then Reconstruction::Validate.
 #include <cstddef>
 #include <cstdint>
 #include <string>

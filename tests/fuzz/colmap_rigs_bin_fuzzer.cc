@@ -1,4 +1,5 @@
-// Fuzz target colmap_rigs_bin: a COLMAP rigs.bin through ReadRigsBinary into an empty reconstruction, then Reconstruction::Validate.
+// Fuzz target colmap_rigs_bin: a COLMAP rigs.bin through ReadRigsBinary into an empty
+// reconstruction, then Reconstruction::Validate.
 #include <cstddef>
 #include <cstdint>
 #include <string>

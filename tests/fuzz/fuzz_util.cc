@@ -1,12 +1,12 @@
 #include "tests/fuzz/fuzz_util.h"
 
+#include <unistd.h>
+
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <stdexcept>
 #include <system_error>
-
-#include <unistd.h>
 
 #include "core/logging.h"
 
@@ -19,8 +19,8 @@ struct Scratch {
   std::string dir;
   Scratch() {
     const char* tmp = std::getenv("TMPDIR");
-    std::string pattern = std::string(tmp != nullptr && *tmp != '\0' ? tmp : "/tmp") +
-                          "/lisfm_fuzz_XXXXXX";
+    std::string pattern =
+        std::string(tmp != nullptr && *tmp != '\0' ? tmp : "/tmp") + "/lisfm_fuzz_XXXXXX";
     if (mkdtemp(pattern.data()) == nullptr) {
       throw std::runtime_error("fuzz: cannot create a scratch folder " + pattern);
     }

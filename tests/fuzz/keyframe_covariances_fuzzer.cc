@@ -1,4 +1,5 @@
-// Fuzz target keyframe_covariances: pose_slam keyframe covariance files through ReadKeyframeCovariances.
+// Fuzz target keyframe_covariances: pose_slam keyframe covariance files through
+// ReadKeyframeCovariances.
 #include <cstddef>
 #include <cstdint>
 #include <string>

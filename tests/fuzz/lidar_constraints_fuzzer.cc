@@ -1,4 +1,5 @@
-// Fuzz target lidar_constraints: LiDAR constraint files, lisfm (30 fields) and GTSFM HILTI (50/75 fields), through ReadLidarConstraints.
+// Fuzz target lidar_constraints: LiDAR constraint files, lisfm (30 fields) and GTSFM HILTI (50/75
+// fields), through ReadLidarConstraints.
 #include <cstddef>
 #include <cstdint>
 #include <string>

@@ -24,8 +24,7 @@
 
 #include "tests/fuzz/fuzz_util.h"
 
-#define LISFM_FUZZ_TARGET(name) \
-  extern "C" int LisfmFuzz_##name(const uint8_t* data, size_t size);
+#define LISFM_FUZZ_TARGET(name) extern "C" int LisfmFuzz_##name(const uint8_t* data, size_t size);
 #include <lisfm_fuzz_targets.inc>
 #undef LISFM_FUZZ_TARGET
 
@@ -83,8 +82,8 @@ int main(int argc, char** argv) {
       }
     }
     if (files.empty()) {
-      std::fprintf(stderr, "error: %s: no seed inputs for fuzz target '%s'\n", folder.c_str(),
-                   name.c_str());
+      std::fprintf(
+          stderr, "error: %s: no seed inputs for fuzz target '%s'\n", folder.c_str(), name.c_str());
       return 1;
     }
     std::sort(files.begin(), files.end());
