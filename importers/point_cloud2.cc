@@ -170,6 +170,8 @@ PointCloud DecodePointCloud2(const RawPointCloud2& msg,
 
   PointCloud cloud;
   const size_t n = static_cast<size_t>(msg.height) * msg.width;
+  // Without points there is nothing to read (and no rows to walk: height may be 2^32 - 1).
+  if (n == 0) throw fail("no finite point");
   cloud.points.resize(n);
   std::vector<double> rel_s(n);
   double min_rel = std::numeric_limits<double>::infinity();
