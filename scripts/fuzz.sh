@@ -70,7 +70,7 @@ for t in "${targets[@]}"; do
   [ "$crashes" -gt 0 ] && any_crash=1
   execs=$(sed -n 's/^stat::number_of_executed_units: *//p' "$log" | tail -1)
   rate=$(sed -n 's/^stat::average_exec_per_sec: *//p' "$log" | tail -1)
-  cov=$(grep -o 'cov: [0-9]*' "$log" | tail -1 | cut -d' ' -f2)
+  cov=$(grep -ao 'cov: [0-9]*' "$log" | tail -1 | cut -d' ' -f2)
   corpus=$(find "$WORK/corpus/$t" -type f | wc -l)
   rows+=("$(printf '%-22s %7s %12s %8s %7s %7s %8s' "$t" "$SECONDS_PER_TARGET" "${execs:-?}" \
     "${rate:-?}" "${cov:-?}" "$corpus" "$crashes")")
