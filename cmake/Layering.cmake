@@ -19,5 +19,5 @@ set(LISFM_LAYERS
 
 # Folders of test support, tests and benchmarks (they may include any product
 # folder and each other, never apps/).
-set(LISFM_TEST_FOLDERS icp/testing colmap_ext/testing importers/testing tests/common tests/e2e tests/integration
+set(LISFM_TEST_FOLDERS icp/testing colmap_ext/testing importers/testing tests/common tests/e2e tests/fuzz tests/integration
     bench)

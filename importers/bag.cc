@@ -99,6 +99,78 @@ std::string ReadFilePrefix(const std::string& path, size_t n) {
   return s;
 }
 
+// Walks the top-level records of a ROS1 bag (format 2.0: "#ROSBAG V2.0\n", then
+// records: u32 header length, header, u32 data length, data) and returns "" when
+// every record lies inside the file, else what is wrong. rosbag_storage
+// allocates a record's announced lengths before reading them (up to 4 GiB each),
+// and a chunk's uncompressed `size` before decompressing it, so a damaged length
+// must be refused here. Header fields: u32 length, "name=value".
+std::string BagRecordError(const std::string& path) {
+  constexpr uint64_t kMaxHeaderBytes = uint64_t{1} << 20;  // headers hold a few fields
+  constexpr uint64_t kMaxChunkBytes = uint64_t{1} << 30;   // uncompressed chunk (1 GiB)
+  std::ifstream in(path, std::ios::binary);
+  in.seekg(0, std::ios::end);
+  const uint64_t file_size = static_cast<uint64_t>(std::max<std::streamoff>(in.tellg(), 0));
+  uint64_t pos = 13;  // after the magic line
+  const auto read_u32 = [&](uint64_t at, uint32_t* v) {
+    in.seekg(static_cast<std::streamoff>(at));
+    return static_cast<bool>(in.read(reinterpret_cast<char*>(v), 4));
+  };
+  while (pos < file_size) {
+    uint32_t header_len = 0, data_len = 0;
+    if (file_size - pos < 4 || !read_u32(pos, &header_len)) {
+      return fmt::format("record at byte {}: the file ends in its header length", pos);
+    }
+    if (header_len > kMaxHeaderBytes || header_len > file_size - pos - 4) {
+      return fmt::format("record at byte {}: header of {} bytes, {} bytes left in the file",
+                         pos,
+                         header_len,
+                         file_size - pos - 4);
+    }
+    const uint64_t data_at = pos + 4 + header_len;
+    if (file_size - data_at < 4 || !read_u32(data_at, &data_len)) {
+      return fmt::format("record at byte {}: the file ends in its data length", pos);
+    }
+    if (data_len > file_size - data_at - 4) {
+      return fmt::format("record at byte {}: data of {} bytes, {} bytes left in the file",
+                         pos,
+                         data_len,
+                         file_size - data_at - 4);
+    }
+    std::string header(header_len, '\0');
+    in.seekg(static_cast<std::streamoff>(pos + 4));
+    in.read(header.data(), header_len);
+    std::map<std::string, std::string> fields;
+    for (size_t i = 0; i + 4 <= header.size();) {
+      uint32_t field_len = 0;
+      std::memcpy(&field_len, header.data() + i, 4);
+      if (field_len > header.size() - i - 4) {
+        return fmt::format(
+            "record at byte {}: header field of {} bytes past the header", pos, field_len);
+      }
+      const std::string field = header.substr(i + 4, field_len);
+      const size_t eq = field.find('=');
+      if (eq != std::string::npos) fields[field.substr(0, eq)] = field.substr(eq + 1);
+      i += 4 + field_len;
+    }
+    if (fields["op"] == std::string(1, '\x05')) {  // a chunk
+      uint32_t size = 0;
+      if (fields["size"].size() == 4) std::memcpy(&size, fields["size"].data(), 4);
+      if (size > kMaxChunkBytes || (fields["compression"] == "none" && size != data_len)) {
+        return fmt::format(
+            "chunk at byte {}: {} uncompressed bytes announced for {} bytes of "
+            "'{}' data",
+            pos,
+            size,
+            data_len,
+            fields["compression"]);
+      }
+    }
+    pos = data_at + 4 + data_len;
+  }
+  return "";
+}
+
 TimestampNs ToNs(const ros::Time& t) { return static_cast<TimestampNs>(t.toNSec()); }
 
 uint8_t ParseTimeType(const std::string& s, const std::string& path) {
@@ -298,6 +370,11 @@ BagImportSummary ImportBag(const std::string& bag_path,
   for (const std::string& path : paths) {
     bags.push_back(std::make_unique<rosbag::Bag>());
     try {
+      const std::string head = ReadFilePrefix(path, 13);
+      if (head == "#ROSBAG V2.0\n") {
+        const std::string error = BagRecordError(path);
+        if (!error.empty()) throw std::runtime_error(error);
+      }
       bags.back()->open(path, rosbag::bagmode::Read);
     } catch (const std::exception& e) {
       // A bag starts with "#ROSBAG V2.0\n"; one that does but fails to open has

@@ -5,6 +5,8 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <functional>
+#include <map>
 #include <sstream>
 
 #include "core/errors.h"
@@ -20,6 +22,12 @@ size_t BuiltinSize(const std::string& t) {
   if (t == "int64" || t == "uint64" || t == "float64" || t == "time" || t == "duration") return 8;
   return 0;
 }
+
+// Bounds of a definition's fixed sizes: a fixed array length (ROS uses a few
+// dozen at most, e.g. float64[36]) and the fixed size of one field (far beyond
+// any message a bag chunk holds), so that no size computation overflows.
+constexpr uint32_t kMaxFixedArrayLength = 100000000;
+constexpr size_t kMaxFixedMessageBytes = size_t{1} << 40;
 
 bool IsBuiltin(const std::string& t) { return BuiltinSize(t) > 0 || t == "string"; }
 
@@ -100,6 +108,13 @@ RosMessageDefinition::RosMessageDefinition(const std::string& datatype,
                            fmt::format("message definition of {} line {}", datatype, no),
                            "bad array type '" + t + "'");
         }
+        // A fixed length is at most kMaxFixedArrayLength, so that sizes computed
+        // from the definition cannot overflow (FixedSize).
+        if (n.size() > 9 || (!n.empty() && std::stoul(n) > kMaxFixedArrayLength)) {
+          throw InputError(where,
+                           fmt::format("message definition of {} line {}", datatype, no),
+                           fmt::format("array length in '{}' exceeds {}", t, kMaxFixedArrayLength));
+        }
         f.fixed_count = n.empty() ? 0 : static_cast<uint32_t>(std::stoul(n));
         t = t.substr(0, bracket);
       }
@@ -126,6 +141,26 @@ RosMessageDefinition::RosMessageDefinition(const std::string& datatype,
       }
     }
   }
+  // A type that contains itself (directly or through others) has no finite
+  // serialization; the size computations below recurse through the types.
+  std::map<std::string, int> state;  // 1: on the current path, 2: done
+  std::function<void(const std::string&)> visit = [&](const std::string& type) {
+    state[type] = 1;
+    for (const RosMsgField& f : types_.at(type)) {
+      if (IsBuiltin(f.type) || state[f.type] == 2) continue;
+      if (state[f.type] == 1) {
+        throw InputError(
+            where,
+            "message definition of " + datatype,
+            fmt::format("type {} contains itself (field {}.{})", f.type, type, f.name));
+      }
+      visit(f.type);
+    }
+    state[type] = 2;
+  };
+  for (const auto& entry : types_) {
+    if (state[entry.first] == 0) visit(entry.first);
+  }
 }
 
 const std::vector<RosMsgField>& RosMessageDefinition::Fields(const std::string& type) const {
@@ -136,7 +171,16 @@ std::optional<size_t> RosMessageDefinition::FixedSize(const RosMsgField& field) 
   if (field.is_array && field.fixed_count == 0) return std::nullopt;
   const std::optional<size_t> one = FixedSize(field.type);
   if (!one) return std::nullopt;
-  return *one * (field.is_array ? field.fixed_count : 1);
+  const size_t count = field.is_array ? field.fixed_count : 1;
+  if (count > 0 && *one > kMaxFixedMessageBytes / count) {
+    throw InputError(where_,
+                     "message definition of " + datatype_,
+                     fmt::format("field {} of type {} holds more than {} bytes",
+                                 field.name,
+                                 field.type,
+                                 kMaxFixedMessageBytes));
+  }
+  return *one * count;
 }
 
 std::optional<size_t> RosMessageDefinition::FixedSize(const std::string& type) const {
@@ -147,6 +191,12 @@ std::optional<size_t> RosMessageDefinition::FixedSize(const std::string& type) c
     const std::optional<size_t> s = FixedSize(f);
     if (!s) return std::nullopt;
     total += *s;
+    if (total > kMaxFixedMessageBytes) {
+      throw InputError(
+          where_,
+          "message definition of " + datatype_,
+          fmt::format("type {} holds more than {} bytes", type, kMaxFixedMessageBytes));
+    }
   }
   return total;
 }

@@ -167,5 +167,33 @@ TEST(BagMessageTest, BadDefinitionsAndBytesAreInputErrors) {
             std::string::npos);
 }
 
+TEST(BagMessageTest, DefinitionsWithoutAFiniteSizeAreInputErrors) {
+  // A type that contains itself, directly or through another type.
+  EXPECT_NE(ThrownMessage([] {
+              RosMessageDefinition("a/B", "uint8 x\nB self\n", "b.bag");
+            }).find("b.bag:message definition of a/B: type a/B contains itself (field a/B.self)"),
+            std::string::npos);
+  EXPECT_NE(ThrownMessage([] {
+              RosMessageDefinition("a/B", "C c\n===\nMSG: a/C\nB[] b\n", "b.bag");
+            }).find("contains itself"),
+            std::string::npos);
+  // An array length beyond any message (std::stoul would overflow on the first).
+  EXPECT_NE(ThrownMessage(
+                [] { RosMessageDefinition("a/B", "uint8[99999999999999999999999] x\n", "b.bag"); })
+                .find("b.bag:message definition of a/B line 1: array length in "
+                      "'uint8[99999999999999999999999]' exceeds 100000000"),
+            std::string::npos);
+  // Nested fixed arrays whose byte size overflows 64 bits (8 * 1e8^3 bytes).
+  const RosMessageDefinition nested("a/B",
+                                    "C[100000000] c\n===\nMSG: a/C\nD[100000000] d\n"
+                                    "===\nMSG: a/D\nuint64[100000000] x\n",
+                                    "b.bag");
+  EXPECT_NE(
+      ThrownMessage([&] { nested.FixedSize("a/B"); }).find("holds more than 1099511627776 bytes"),
+      std::string::npos);
+  const uint8_t bytes[8] = {};
+  EXPECT_THROW(SplitRosMessage(nested, bytes, sizeof(bytes), "m"), InputError);
+}
+
 }  // namespace
 }  // namespace lisfm

@@ -288,6 +288,20 @@ TEST_F(BagTest, BadBagsAreOneInputErrorNamingBagTopicAndMessage) {
   }
   ExpectImportError(truncated, velodyne, {truncated, "truncated, unindexed or corrupted"});
 
+  // A record length past the end of the file (rosbag_storage would allocate it):
+  // the bag header record at byte 13, after "#ROSBAG V2.0\n", announces 4 GiB.
+  const std::string huge_record = dir_->File("huge_record.bag");
+  {
+    std::string bytes = ReadFile(good);
+    bytes.replace(13, 4, "\xf0\xff\xff\xff");
+    test::WriteText(huge_record, bytes);
+  }
+  ExpectImportError(huge_record,
+                    velodyne,
+                    {huge_record,
+                     "truncated, unindexed or corrupted",
+                     "record at byte 13: header of 4294967280 bytes"});
+
   // A corrupted lz4 chunk in the middle of a bag.
   const std::string corrupted = dir_->File("corrupted.bag");
   {

@@ -170,6 +170,8 @@ PointCloud DecodePointCloud2(const RawPointCloud2& msg,
 
   PointCloud cloud;
   const size_t n = static_cast<size_t>(msg.height) * msg.width;
+  // Without points there is nothing to read (and no rows to walk: height may be 2^32 - 1).
+  if (n == 0) throw fail("no finite point");
   cloud.points.resize(n);
   std::vector<double> rel_s(n);
   double min_rel = std::numeric_limits<double>::infinity();
@@ -203,6 +205,10 @@ PointCloud DecodePointCloud2(const RawPointCloud2& msg,
   if (!std::isfinite(min_rel)) throw fail("no finite point");
   // The stamp is the earliest finite point. Absolute times agreeing with
   // header.stamp within their own resolution take header.stamp exactly.
+  // The stamp must be an int64 ns time: |offset| below 2^63 ns (~292 years).
+  if (!(std::abs(min_rel) < 9.2e9)) {
+    throw fail(fmt::format("earliest point time {} s from header.stamp is out of range", min_rel));
+  }
   TimestampNs offset_ns = std::llround(min_rel * 1e9);
   double resolution_s = 0;
   if (absolute) {
@@ -210,7 +216,9 @@ PointCloud DecodePointCloud2(const RawPointCloud2& msg,
                    std::abs(min_abs);
     if (std::abs(min_rel) <= resolution_s) offset_ns = 0;
   }
-  cloud.stamp_ns = msg.header_stamp_ns + offset_ns;
+  if (__builtin_add_overflow(msg.header_stamp_ns, offset_ns, &cloud.stamp_ns)) {
+    throw fail(fmt::format("earliest point time {} s from header.stamp is out of range", min_rel));
+  }
   const double offset_s = static_cast<double>(offset_ns) * 1e-9;
   // The earliest point may fall below the stamp by the stamp's rounding to whole
   // ns, or by the absolute times' resolution: such times become 0.

@@ -224,5 +224,34 @@ TEST(PointCloud2Test, BadLayoutsAreInputErrorsNamingThePlace) {
   expect_error("data bytes");
 }
 
+TEST(PointCloud2Test, PointTimesBeyondTheInt64StampRangeAreInputErrors) {
+  // x y z t float64 (absolute seconds); the stamp is the earliest point, and
+  // times ~1e10 s (317 years) from header.stamp have no int64 ns stamp.
+  RawPointCloud2 msg;
+  msg.header_stamp_ns = 1700000000000000000;
+  msg.width = 1;
+  msg.point_step = 32;
+  msg.row_step = 32;
+  msg.fields = {{"x", 0, 8, 1}, {"y", 8, 8, 1}, {"z", 16, 8, 1}, {"t", 24, 8, 1}};
+  std::vector<uint8_t> data(32, 0);
+  msg.data = data.data();
+  msg.data_size = data.size();
+  PointCloud2Mapping mapping;
+  mapping.time.reference = PointTimeField::Reference::kAbsolute;
+  for (const double t : {1.0e10, -1.0e10, 1e300}) {
+    PutBytes<double>(data.data() + 24, t, false);
+    try {
+      DecodePointCloud2(msg, mapping, "b.bag: topic /p message 0");
+      ADD_FAILURE() << "no error for t = " << t;
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find("from header.stamp is out of range"), std::string::npos)
+          << e.what();
+    }
+  }
+  // 7e9 s after the epoch still has a stamp (~2191).
+  PutBytes<double>(data.data() + 24, 7.0e9, false);
+  EXPECT_EQ(DecodePointCloud2(msg, mapping, "m").stamp_ns, 7000000000000000000);
+}
+
 }  // namespace
 }  // namespace lisfm

@@ -19,6 +19,7 @@ PACKAGES=(
   python3-rosbag python3-sensor-msgs
   pluginlib-dev libclass-loader-dev librcpputils-dev librcutils-dev libament-index-cpp-dev
   libboost-filesystem-dev
+  clang-14 libclang-rt-14-dev
 )
 
 missing=()

@@ -407,7 +407,9 @@ std::string ToLower(std::string text) {
 
 }  // namespace
 
-Rig ParseRigYaml(const std::string& text, const std::string& path_for_errors) {
+namespace {
+
+Rig ParseRigYamlNodes(const std::string& text, const std::string& path_for_errors) {
   const YamlSource src(path_for_errors);
   const YAML::Node root = LoadYaml(text, path_for_errors);
   if (!root.IsMap()) {
@@ -465,6 +467,19 @@ Rig ParseRigYaml(const std::string& text, const std::string& path_for_errors) {
   CheckCameraIndices(&cameras, path_for_errors);
   for (auto& [index, camera] : cameras) rig.cameras.push_back(std::move(camera));
   return rig;
+}
+
+}  // namespace
+
+Rig ParseRigYaml(const std::string& text, const std::string& path_for_errors) {
+  try {
+    return ParseRigYamlNodes(text, path_for_errors);
+  } catch (const YAML::Exception& e) {
+    // A node of another kind than the reader asks for (e.g. a map as a key).
+    throw InputError(path_for_errors,
+                     "line " + std::to_string(e.mark.line + 1),
+                     "unexpected YAML structure: " + e.msg);
+  }
 }
 
 Rig ReadRigYaml(const std::string& path) {
