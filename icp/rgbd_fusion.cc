@@ -207,6 +207,24 @@ RgbdFrameResult RgbdFusion::AddFrame(const std::vector<float>& depth_m,
     // The next frame's tracking target; only needed while tracking.
     map_.RenderVertexNormalMap(
         result.world_from_camera, intrinsics_, 0.0, options_.model_splat_px, &model_);
+    if (!intensity_pyramid_.empty() && !frame_.colors.empty()) {
+      // The photometric target: the model's colour rendered at this pose (world-anchored
+      // texture), this frame's intensity where no surfel is seen.
+      std::vector<uint32_t> index;
+      map_.RenderIndexMap(
+          result.world_from_camera, intrinsics_, 0.0, options_.model_splat_px, &index);
+      const std::vector<Surfel>& surfels = map_.surfels();
+      tbb::parallel_for(size_t{0}, index.size(), [&](size_t i) {
+        if (index[i] == SurfelMap::kNoSurfel) return;
+        const std::array<uint8_t, 3>& c = surfels[index[i]].color;
+        intensity_[i] = (0.299f * c[0] + 0.587f * c[1] + 0.114f * c[2]) * (1.f / 255.f);
+      });
+      BuildIntensityPyramid(intensity_,
+                            intrinsics_.width,
+                            intrinsics_.height,
+                            icp_options_.num_levels,
+                            &intensity_pyramid_);
+    }
   }
   result.track_ms += MsSince(t0);
   previous_motion_ = num_frames_ == 0 ? SE3() : previous_.Inverse() * result.world_from_camera;
