@@ -118,15 +118,17 @@ struct ProjectiveIcpOptions {
       0.1;                             // d_thr: reject |T p - q| above this (m; x 2^l at level l)
   double max_normal_angle_deg = 30.0;  // theta_thr: reject normals further apart (deg)
   double huber_threshold_m = 0.01;     // Huber IRLS scale on b_i (m; 0 = plain least squares)
-  double convergence_rotation_rad = 1e-5;   // a level ends when |omega| of a step is below (rad)
-  double convergence_translation_m = 1e-5;  // ... and |dt| is below (m)
+  double convergence_rotation_rad = 1e-4;   // a level ends when |omega| of a step is below (rad)
+  double convergence_translation_m = 1e-4;  // ... and |dt| is below (m)
   int min_inliers = 100;                    // fewer matches: not converged
   double degeneracy_threshold = 0.02;       // as IcpOptions::degeneracy_threshold
   // Weight of the photometric term against the geometric one (intensity in [0, 1]
   // against metres; 0 = depth only). Open3D's hybrid term weighs depth 0.968 and
   // intensity 0.032: the default is their ratio, 0.032 / 0.968.
   double photometric_weight = 0.033;
-  double photometric_huber = 0.05;  // Huber scale of the intensity residual ([0, 1] units)
+  // Huber scale of the intensity residual ([0, 1] units; 0.02 ~ 5 of 255 levels):
+  // real RGB-D colour (exposure, RGB-depth registration) has outliers.
+  double photometric_huber = 0.02;
   bool Check() const;
 };
 

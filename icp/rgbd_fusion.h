@@ -11,9 +11,12 @@
 // Tracking: the model is rendered (index map, splat radius model_splat_px) at the
 // previous pose; the initial guess is the previous pose or, with constant_velocity,
 // the previous relative motion applied once more. With colour and
-// ProjectiveIcpOptions::photometric_weight > 0 the ICP adds the photometric term
-// against the previous frame's intensity (its pose is the one the model is rendered
-// at), I = (0.299 R + 0.587 G + 0.114 B) / 255. The ICP estimate is used when it
+// ProjectiveIcpOptions::photometric_weight > 0 the ICP adds the photometric term,
+// I = (0.299 R + 0.587 G + 0.114 B) / 255, of this frame against the model's colour
+// rendered at the previous pose (the same index map as the geometric target;
+// where no surfel is seen, the previous frame's intensity). The model's colour is
+// anchored in the world: a frame-to-frame target would add each frame's error
+// along the directions only texture constrains (a corridor's axis). The ICP estimate is used when it
 // has at least min_inliers matches; otherwise the frame keeps the initial guess and
 // FrameResult::tracked is false.
 //
