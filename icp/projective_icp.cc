@@ -180,6 +180,24 @@ void ComputeVertexNormalMap(const std::vector<float>& depth_m,
         dv += static_cast<float>(k) * (dn - up);
       }
       if (!ok) continue;
+      if (r > 1) {
+        // A crease (a room's edge) within the window: the outer half-window chords
+        // v(u) - v(u-r) and v(u+r) - v(u) turn by more than 30 deg; that axis falls
+        // back to central differences, so a normal never mixes two planes.
+        constexpr float kMinCos = 0.8660254f;  // cos 30 deg
+        const size_t step_v = static_cast<size_t>(r) * w;
+        const Eigen::Vector3f& x = out->vertices[i];
+        const auto crease = [&](const Eigen::Vector3f& a, const Eigen::Vector3f& b) {
+          const Eigen::Vector3f da = x - a, db = b - x;
+          return da.dot(db) < kMinCos * da.norm() * db.norm();
+        };
+        if (crease(out->vertices[i - r], out->vertices[i + r])) {
+          du = out->vertices[i + 1] - out->vertices[i - 1];
+        }
+        if (crease(out->vertices[i - step_v], out->vertices[i + step_v])) {
+          dv = out->vertices[i + w] - out->vertices[i - w];
+        }
+      }
       Eigen::Vector3f c = du.cross(dv);
       const float norm = c.norm();
       if (!(norm > 0)) continue;

@@ -78,7 +78,9 @@ struct VertexNormalMap {
 //   n = d_u x d_v,  d_u = sum_{k=1..r} k (v(u+k) - v(u-k)),  d_v likewise,
 // oriented towards the camera (r = 1: central differences). Depth noise sigma gives
 // a normal noise ~ sigma / (pixel footprint r^1.5): a wider window smooths the
-// normals of noisy depth. A pixel gets a normal only when its 4r neighbours are
+// normals of noisy depth. Where the outer chords v(u) - v(u-r) and v(u+r) - v(u)
+// turn by more than 30 deg (a crease) that axis uses central differences. A pixel
+// gets a normal only when its 4r neighbours are
 // valid and the k-th is within k max_depth_jump (fraction of its depth, > 0) of its
 // depth (no normals across depth discontinuities). Depths outside [min_depth_m,
 // max_depth_m] are invalid. Reuses out's storage.
