@@ -16,9 +16,9 @@
 // rendered at the previous pose (the same index map as the geometric target;
 // where no surfel is seen, the previous frame's intensity). The model's colour is
 // anchored in the world: a frame-to-frame target would add each frame's error
-// along the directions only texture constrains (a corridor's axis). The ICP estimate is used when it
-// has at least min_inliers matches; otherwise the frame keeps the initial guess and
-// FrameResult::tracked is false.
+// along the directions only texture constrains (a corridor's axis). The ICP
+// estimate is used when it has at least min_inliers matches; otherwise the frame
+// keeps the initial guess and FrameResult::tracked is false.
 //
 // Threads: TBB inside each stage; not thread-safe itself. Results do not depend
 // on the thread count.
