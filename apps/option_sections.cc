@@ -130,6 +130,14 @@ void AddProjectiveIcpOptions(OptionManager* options, ProjectiveIcpOptions* icp) 
   options->AddDouble("ProjectiveIcp.degeneracy_threshold", &icp->degeneracy_threshold,
                      "min/max Hessian eigenvalue ratio below which the result is degenerate",
                      R::AtLeast(0));
+  options->AddDouble("ProjectiveIcp.photometric_weight", &icp->photometric_weight,
+                     "weight of the intensity residual (colour, [0, 1]) against the "
+                     "point-to-plane one (m) in tracking; default Open3D's hybrid ratio "
+                     "0.032/0.968 (0 = depth only)",
+                     R::AtLeast(0));
+  options->AddDouble("ProjectiveIcp.photometric_huber", &icp->photometric_huber,
+                     "Huber scale of the intensity residual ([0, 1]; 0 = least squares)",
+                     R::AtLeast(0));
   options->AddStructCheck([icp] { return icp->Check(); });
 }
 
@@ -164,6 +172,10 @@ void AddRgbdFusionOptions(OptionManager* options, RgbdFusionOptions* rgbd) {
   options->AddDouble("Fusion.max_depth_jump", &rgbd->max_depth_jump,
                      "no normal across a neighbour depth step above this fraction of the depth",
                      R::GreaterThan(0));
+  options->AddInt("Fusion.normal_window_px", &rgbd->normal_window_px,
+                  "normals from depth slopes over this many pixels each side (1 = central "
+                  "differences; wider = smoother normals of noisy depth)",
+                  R::Between(1, 5));
   options->AddDouble("Fusion.max_incidence_deg", &rgbd->max_incidence_deg,
                      "drop pixels seen more obliquely (angle between normal and ray, deg)",
                      R::GreaterThan(0).AndAtMost(90));

@@ -28,6 +28,7 @@ struct RowSums {
   Eigen::Vector3d point_sum = Eigen::Vector3d::Zero();
   double point_sq = 0;
   size_t count = 0;
+  size_t photometric_count = 0;
   void Clear() { *this = RowSums(); }
   void Add(const RowSums& o) {
     for (int i = 0; i < 21; ++i) h[i] += o.h[i];
@@ -37,8 +38,65 @@ struct RowSums {
     point_sum += o.point_sum;
     point_sq += o.point_sq;
     count += o.count;
+    photometric_count += o.photometric_count;
+  }
+  // Adds the row w a^T a, w a^T b of one residual to h and g.
+  void AddRow(const Eigen::Matrix<double, 1, 6>& a, double b, double w) {
+    int k = 0;
+    for (int x = 0; x < 6; ++x) {
+      const double wa = w * a(x);
+      for (int y = x; y < 6; ++y) h[k++] += wa * a(y);
+      g[x] += wa * b;
+    }
   }
 };
+
+// 1D Gaussian blur of sigma (pixels) along rows (step 1) or columns (step width),
+// clamped at the border.
+void BlurAxis(const std::vector<float>& in,
+              int width,
+              int height,
+              bool along_rows,
+              const std::vector<float>& kernel,
+              std::vector<float>* out) {
+  const int r = static_cast<int>(kernel.size()) / 2;
+  out->resize(in.size());
+  tbb::parallel_for(0, height, [&](int v) {
+    for (int u = 0; u < width; ++u) {
+      float sum = 0.f;
+      for (int k = -r; k <= r; ++k) {
+        const int uu = along_rows ? std::clamp(u + k, 0, width - 1) : u;
+        const int vv = along_rows ? v : std::clamp(v + k, 0, height - 1);
+        sum += kernel[k + r] * in[static_cast<size_t>(vv) * width + uu];
+      }
+      (*out)[static_cast<size_t>(v) * width + u] = sum;
+    }
+  });
+}
+
+// Bilinear sample of a level's intensity and gradients at (u, v) (pixels); false
+// outside [0, width - 1) x [0, height - 1).
+bool Sample(const IntensityPyramid::Level& level,
+            int width,
+            int height,
+            float u,
+            float v,
+            float* intensity,
+            float* grad_u,
+            float* grad_v) {
+  if (!(u >= 0.f && v >= 0.f && u < width - 1 && v < height - 1)) return false;
+  const int u0 = static_cast<int>(u), v0 = static_cast<int>(v);
+  const float a = u - u0, b = v - v0;
+  const size_t i = static_cast<size_t>(v0) * width + u0;
+  const float w00 = (1 - a) * (1 - b), w10 = a * (1 - b), w01 = (1 - a) * b, w11 = a * b;
+  auto lerp = [&](const std::vector<float>& img) {
+    return w00 * img[i] + w10 * img[i + 1] + w01 * img[i + width] + w11 * img[i + width + 1];
+  };
+  *intensity = lerp(level.intensity);
+  *grad_u = lerp(level.grad_u);
+  *grad_v = lerp(level.grad_v);
+  return true;
+}
 
 void CheckMap(const VertexNormalMap& map, const char* what) {
   const size_t n = static_cast<size_t>(std::max(map.width, 0)) * std::max(map.height, 0);
@@ -75,10 +133,12 @@ void ComputeVertexNormalMap(const std::vector<float>& depth_m,
                             double min_depth_m,
                             double max_depth_m,
                             double max_depth_jump,
-                            VertexNormalMap* out) {
+                            VertexNormalMap* out,
+                            int normal_window_px) {
   const int w = K.width, h = K.height;
   THROW_CHECK_EQ(depth_m.size(), static_cast<size_t>(w) * static_cast<size_t>(h));
   THROW_CHECK(max_depth_jump > 0);
+  THROW_CHECK(normal_window_px >= 1);
   out->Resize(w, h);
   const float zmin = static_cast<float>(min_depth_m), zmax = static_cast<float>(max_depth_m);
   const float fx_inv = static_cast<float>(1.0 / K.fx), fy_inv = static_cast<float>(1.0 / K.fy);
@@ -94,23 +154,50 @@ void ComputeVertexNormalMap(const std::vector<float>& depth_m,
     }
   });
   const float jump = static_cast<float>(max_depth_jump);
+  const int r = normal_window_px;
   tbb::parallel_for(0, h, [&](int v) {
     for (int u = 0; u < w; ++u) {
       const size_t i = static_cast<size_t>(v) * w + u;
       Eigen::Vector3f& n = out->normals[i];
       n.setZero();
-      if (u == 0 || v == 0 || u + 1 == w || v + 1 == h) continue;
+      if (u < r || v < r || u + r >= w || v + r >= h) continue;
       const float z = out->vertices[i].z();
       if (!(z > 0)) continue;
       const float limit = jump * z;
       bool ok = true;
-      for (const size_t j : {i - 1, i + 1, i - w, i + w}) {
-        const float zj = out->vertices[j].z();
-        ok = ok && zj > 0 && std::abs(zj - z) <= limit;
+      Eigen::Vector3f du = Eigen::Vector3f::Zero(), dv = Eigen::Vector3f::Zero();
+      for (int k = 1; k <= r && ok; ++k) {
+        const size_t step_v = static_cast<size_t>(k) * w;
+        const Eigen::Vector3f& l = out->vertices[i - k];
+        const Eigen::Vector3f& rt = out->vertices[i + k];
+        const Eigen::Vector3f& up = out->vertices[i - step_v];
+        const Eigen::Vector3f& dn = out->vertices[i + step_v];
+        const float reach = k * limit;
+        for (const Eigen::Vector3f* x : {&l, &rt, &up, &dn}) {
+          ok = ok && x->z() > 0 && std::abs(x->z() - z) <= reach;
+        }
+        du += static_cast<float>(k) * (rt - l);
+        dv += static_cast<float>(k) * (dn - up);
       }
       if (!ok) continue;
-      const Eigen::Vector3f du = out->vertices[i + 1] - out->vertices[i - 1];
-      const Eigen::Vector3f dv = out->vertices[i + w] - out->vertices[i - w];
+      if (r > 1) {
+        // A crease (a room's edge) within the window: the outer half-window chords
+        // v(u) - v(u-r) and v(u+r) - v(u) turn by more than 30 deg; that axis falls
+        // back to central differences, so a normal never mixes two planes.
+        constexpr float kMinCos = 0.8660254f;  // cos 30 deg
+        const size_t step_v = static_cast<size_t>(r) * w;
+        const Eigen::Vector3f& x = out->vertices[i];
+        const auto crease = [&](const Eigen::Vector3f& a, const Eigen::Vector3f& b) {
+          const Eigen::Vector3f da = x - a, db = b - x;
+          return da.dot(db) < kMinCos * da.norm() * db.norm();
+        };
+        if (crease(out->vertices[i - r], out->vertices[i + r])) {
+          du = out->vertices[i + 1] - out->vertices[i - 1];
+        }
+        if (crease(out->vertices[i - step_v], out->vertices[i + step_v])) {
+          dv = out->vertices[i + w] - out->vertices[i - w];
+        }
+      }
       Eigen::Vector3f c = du.cross(dv);
       const float norm = c.norm();
       if (!(norm > 0)) continue;
@@ -132,6 +219,8 @@ bool ProjectiveIcpOptions::Check() const {
   CHECK_OPTION_GE(convergence_translation_m, 0.0);
   CHECK_OPTION_GE(min_inliers, 6);
   CHECK_OPTION_GE(degeneracy_threshold, 0.0);
+  CHECK_OPTION_GE(photometric_weight, 0.0);
+  CHECK_OPTION_GE(photometric_huber, 0.0);
   return true;
 }
 
@@ -145,11 +234,80 @@ double ProjectivePointToPlane(const Eigen::Vector3d& p,
   return n.dot(p - q);
 }
 
+void BuildIntensityPyramid(const std::vector<float>& intensity,
+                           int width,
+                           int height,
+                           int num_levels,
+                           IntensityPyramid* out) {
+  THROW_CHECK(width >= 3 && height >= 3 && num_levels >= 1);
+  THROW_CHECK_EQ(intensity.size(), static_cast<size_t>(width) * static_cast<size_t>(height));
+  out->width = width;
+  out->height = height;
+  out->levels.resize(static_cast<size_t>(num_levels));
+  std::vector<float> tmp;
+  for (int l = 0; l < num_levels; ++l) {
+    IntensityPyramid::Level& level = out->levels[l];
+    // Gaussian kernel of sigma 0.75 * 2^l, radius ceil(2.5 sigma), normalised.
+    const double sigma = 0.75 * (1 << l);
+    const int r = static_cast<int>(std::ceil(2.5 * sigma));
+    std::vector<float> kernel(static_cast<size_t>(2 * r + 1));
+    float sum = 0.f;
+    for (int k = -r; k <= r; ++k) {
+      kernel[k + r] = static_cast<float>(std::exp(-0.5 * k * k / (sigma * sigma)));
+      sum += kernel[k + r];
+    }
+    for (float& k : kernel) k /= sum;
+    BlurAxis(intensity, width, height, true, kernel, &tmp);
+    BlurAxis(tmp, width, height, false, kernel, &level.intensity);
+    // Central differences, one-sided at the border: dI/du, dI/dv per pixel.
+    level.grad_u.resize(intensity.size());
+    level.grad_v.resize(intensity.size());
+    const std::vector<float>& img = level.intensity;
+    tbb::parallel_for(0, height, [&](int v) {
+      for (int u = 0; u < width; ++u) {
+        const size_t i = static_cast<size_t>(v) * width + u;
+        const int ul = std::max(u - 1, 0), ur = std::min(u + 1, width - 1);
+        const int vu = std::max(v - 1, 0), vd = std::min(v + 1, height - 1);
+        level.grad_u[i] =
+            (img[static_cast<size_t>(v) * width + ur] - img[static_cast<size_t>(v) * width + ul]) /
+            static_cast<float>(ur - ul);
+        level.grad_v[i] =
+            (img[static_cast<size_t>(vd) * width + u] - img[static_cast<size_t>(vu) * width + u]) /
+            static_cast<float>(vd - vu);
+      }
+    });
+  }
+}
+
+bool ProjectivePhotometric(const Eigen::Vector3d& p,
+                           double source_intensity,
+                           const IntensityPyramid::Level& level,
+                           const PinholeIntrinsics& K,
+                           double* residual,
+                           Eigen::Matrix<double, 1, 6>* a) {
+  if (!(p.z() > 0)) return false;
+  const double inv_z = 1.0 / p.z();
+  const double u = K.fx * p.x() * inv_z + K.cx, v = K.fy * p.y() * inv_z + K.cy;
+  float i_t, gu, gv;
+  if (!Sample(
+          level, K.width, K.height, static_cast<float>(u), static_cast<float>(v), &i_t, &gu, &gv))
+    return false;
+  // g = dI/dp = [gu gv] d(u, v)/dp, d(u, v)/dp = [fx/z 0 -fx x/z^2; 0 fy/z -fy y/z^2].
+  const double gx = gu * K.fx * inv_z, gy = gv * K.fy * inv_z;
+  const Eigen::Vector3d g(gx, gy, -(gx * p.x() + gy * p.y()) * inv_z);
+  *residual = i_t - source_intensity;
+  a->leftCols<3>() = p.cross(g).transpose();
+  a->rightCols<3>() = g.transpose();
+  return true;
+}
+
 ProjectiveIcpResult RegisterProjective(const VertexNormalMap& source,
                                        const VertexNormalMap& target,
                                        const PinholeIntrinsics& K,
                                        const SE3& initial_target_from_source,
-                                       const ProjectiveIcpOptions& options) {
+                                       const ProjectiveIcpOptions& options,
+                                       const IntensityPyramid* source_intensity,
+                                       const IntensityPyramid* target_intensity) {
   THROW_CHECK_OPTIONS(options);
   CheckMap(source, "source vertex map");
   CheckMap(target, "target vertex map");
@@ -164,6 +322,32 @@ ProjectiveIcpResult RegisterProjective(const VertexNormalMap& source,
                                  K.width,
                                  K.height));
   }
+  const bool photometric = options.photometric_weight > 0 && source_intensity != nullptr &&
+                           target_intensity != nullptr && !source_intensity->empty() &&
+                           !target_intensity->empty();
+  if (photometric) {
+    const auto check = [&](const IntensityPyramid& pyramid,
+                           const VertexNormalMap& map,
+                           const char* what) {
+      if (pyramid.width != map.width || pyramid.height != map.height ||
+          pyramid.levels.size() < static_cast<size_t>(options.num_levels)) {
+        throw InputError(what,
+                         "",
+                         fmt::format("expected a {}x{} intensity pyramid of at least {} levels, "
+                                     "found {}x{} with {}",
+                                     map.width,
+                                     map.height,
+                                     options.num_levels,
+                                     pyramid.width,
+                                     pyramid.height,
+                                     pyramid.levels.size()));
+      }
+    };
+    check(*source_intensity, source, "source intensity");
+    check(*target_intensity, target, "target intensity");
+  }
+  const double photo_weight = options.photometric_weight;
+  const double photo_huber = options.photometric_huber;
   const float min_cos = static_cast<float>(std::cos(options.max_normal_angle_deg * kDegToRad));
   const double huber = options.huber_threshold_m;
   const float fx = static_cast<float>(K.fx), fy = static_cast<float>(K.fy);
@@ -188,7 +372,7 @@ ProjectiveIcpResult RegisterProjective(const VertexNormalMap& source,
       const Eigen::Vector3f t = T.translation().cast<float>();
       tbb::parallel_for(
           tbb::blocked_range<int>(0, num_rows, 8), [&](const tbb::blocked_range<int>& r) {
-            Eigen::Matrix<double, 1, 6> a;
+            Eigen::Matrix<double, 1, 6> a, a_photo;
             for (int row = r.begin(); row != r.end(); ++row) {
               RowSums& s = rows[row];
               s.Clear();
@@ -214,11 +398,22 @@ ProjectiveIcpResult RegisterProjective(const VertexNormalMap& source,
                 const double b = ProjectivePointToPlane(pd, q.cast<double>(), n.cast<double>(), &a);
                 const double ab = std::abs(b);
                 const double w = (huber > 0 && ab > huber) ? huber / ab : 1.0;
-                int k = 0;
-                for (int x = 0; x < 6; ++x) {
-                  const double wa = w * a(x);
-                  for (int y = x; y < 6; ++y) s.h[k++] += wa * a(y);
-                  s.g[x] += wa * b;
+                s.AddRow(a, b, w);
+                if (photometric) {
+                  double r_photo;
+                  if (ProjectivePhotometric(pd,
+                                            source_intensity->levels[level].intensity[i],
+                                            target_intensity->levels[level],
+                                            K,
+                                            &r_photo,
+                                            &a_photo)) {
+                    const double ar = std::abs(r_photo);
+                    const double wp =
+                        photo_weight *
+                        ((photo_huber > 0 && ar > photo_huber) ? photo_huber / ar : 1.0);
+                    s.AddRow(a_photo, r_photo, wp);
+                    ++s.photometric_count;
+                  }
                 }
                 s.weighted_sq += w * b * b;
                 s.sq += b * b;
@@ -276,6 +471,7 @@ ProjectiveIcpResult RegisterProjective(const VertexNormalMap& source,
   }
   result.target_from_source = T;
   result.num_inliers = total.count;
+  result.num_photometric = total.photometric_count;
   double length_m = 1.0;
   if (total.count > 0) {
     result.rmse_m = std::sqrt(total.sq / total.count);

@@ -22,12 +22,25 @@
 // degeneracy_threshold times the largest; a corridor's axis) get no step, so the
 // initial guess is kept along them (solution remapping, Zhang et al. 2016).
 //
+// Photometric term (optional; Kerl et al. 2013, Open3D's hybrid RGB-D odometry):
+// with intensity images of both frames (IntensityPyramid, on the pixel grids of
+// the source and target maps), each geometric match also contributes
+//   r_i = I_t(pi(p)) - I_s(u_s, v_s),   A_i = g^T [-[p]x  I],
+//   g = dI_t/dp = [gu fx / z,  gv fy / z,  -(gu fx x + gv fy y) / z^2],
+// with I_t (pyramid level l: the same grid, blurred) and its central-difference
+// gradients (gu, gv) sampled bilinearly at the projection pi(p), I_s the source's
+// level l at its own pixel. Both enter the same normal equations: cost = sum w r_geo^2 +
+// photometric_weight * sum w r_photo^2 (intensities in [0, 1], geometric residuals
+// in m), each with its own Huber IRLS weight. Texture on a plane constrains the
+// in-plane motion that depth alone leaves free (a corridor's axis).
+//
 // Coarse to fine: level l (l = num_levels-1 .. 0) uses every 2^l-th source pixel in
 // both directions and a distance threshold of 2^l d_thr (coarse levels pull in
 // larger displacements); the target maps stay at full resolution. A level ends
 // when a step is below the convergence thresholds or after its iteration budget.
 //
-// Result: the information matrix is (sum w J^T J) / sigma^2 for the right
+// Result: the information matrix is (sum w J^T J) / sigma^2 (with the photometric
+// term: its weighted rows included, sigma^2 from the geometric residuals alone) for the right
 // perturbation of the estimate (DESIGN.md: T = T_hat Exp(xi), J = A Ad(T_hat)),
 // sigma^2 = sum w b^2 / (N - 6), from the last iteration's matches. Degeneracy is
 // decided as in RegisterPointToPlane (icp.h): eigenvalue ratios of the translation
@@ -60,17 +73,45 @@ struct VertexNormalMap {
 };
 
 // Vertices of a depth image (metres, row-major, 0 or non-finite = invalid) and
-// normals by central differences, n = (v(u+1) - v(u-1)) x (v(w+1) - v(w-1)),
-// oriented towards the camera. A pixel gets a normal only when its four
-// neighbours are valid and within max_depth_jump (fraction of its depth, > 0) of
-// its depth (no normals across depth discontinuities). Depths outside
-// [min_depth_m, max_depth_m] are invalid. Reuses out's storage.
+// normals from least-squares slopes along the pixel's row and column over a
+// window of r = normal_window_px pixels each side,
+//   n = d_u x d_v,  d_u = sum_{k=1..r} k (v(u+k) - v(u-k)),  d_v likewise,
+// oriented towards the camera (r = 1: central differences). Depth noise sigma gives
+// a normal noise ~ sigma / (pixel footprint r^1.5): a wider window smooths the
+// normals of noisy depth. Where the outer chords v(u) - v(u-r) and v(u+r) - v(u)
+// turn by more than 30 deg (a crease) that axis uses central differences. A pixel
+// gets a normal only when its 4r neighbours are
+// valid and the k-th is within k max_depth_jump (fraction of its depth, > 0) of its
+// depth (no normals across depth discontinuities). Depths outside [min_depth_m,
+// max_depth_m] are invalid. Reuses out's storage.
 void ComputeVertexNormalMap(const std::vector<float>& depth_m,
                             const PinholeIntrinsics& intrinsics,
                             double min_depth_m,
                             double max_depth_m,
                             double max_depth_jump,
-                            VertexNormalMap* out);
+                            VertexNormalMap* out,
+                            int normal_window_px = 1);
+
+// Intensity images of one frame for the photometric term, all on the frame's own
+// pixel grid: level l is the intensity in [0, 1] blurred by a Gaussian of sigma
+// 0.75 * 2^l pixels (coarse levels widen the basin of convergence), with its
+// central-difference gradients (intensity per pixel).
+struct IntensityPyramid {
+  struct Level {
+    std::vector<float> intensity, grad_u, grad_v;  // row-major, width x height
+  };
+  int width = 0, height = 0;
+  std::vector<Level> levels;
+  bool empty() const { return levels.empty(); }
+};
+
+// Builds `out` (num_levels >= 1) from a row-major width x height intensity image in
+// [0, 1]; reuses out's storage.
+void BuildIntensityPyramid(const std::vector<float>& intensity,
+                           int width,
+                           int height,
+                           int num_levels,
+                           IntensityPyramid* out);
 
 struct ProjectiveIcpOptions {
   int num_levels = 3;                 // pyramid levels (source strides 2^l), 1..5
@@ -79,10 +120,17 @@ struct ProjectiveIcpOptions {
       0.1;                             // d_thr: reject |T p - q| above this (m; x 2^l at level l)
   double max_normal_angle_deg = 30.0;  // theta_thr: reject normals further apart (deg)
   double huber_threshold_m = 0.01;     // Huber IRLS scale on b_i (m; 0 = plain least squares)
-  double convergence_rotation_rad = 1e-5;   // a level ends when |omega| of a step is below (rad)
-  double convergence_translation_m = 1e-5;  // ... and |dt| is below (m)
+  double convergence_rotation_rad = 1e-4;   // a level ends when |omega| of a step is below (rad)
+  double convergence_translation_m = 1e-4;  // ... and |dt| is below (m)
   int min_inliers = 100;                    // fewer matches: not converged
   double degeneracy_threshold = 0.02;       // as IcpOptions::degeneracy_threshold
+  // Weight of the photometric term against the geometric one (intensity in [0, 1]
+  // against metres; 0 = depth only). Open3D's hybrid term weighs depth 0.968 and
+  // intensity 0.032: the default is their ratio, 0.032 / 0.968.
+  double photometric_weight = 0.033;
+  // Huber scale of the intensity residual ([0, 1] units; 0.02 ~ 5 of 255 levels):
+  // real RGB-D colour (exposure, RGB-depth registration) has outliers.
+  double photometric_huber = 0.02;
   bool Check() const;
 };
 
@@ -93,6 +141,7 @@ struct ProjectiveIcpResult {
   int iterations = 0;               // Gauss-Newton iterations over all levels
   size_t num_inliers = 0;           // matches of the last iteration (finest level)
   double rmse_m = 0;                // RMS point-to-plane residual of those matches (m)
+  size_t num_photometric = 0;       // of those, matches with a photometric row
   Mat6 information = Mat6::Zero();  // right perturbation of target_from_source (1/rad^2, 1/m^2)
   Vec6 scaled_eigenvalues = Vec6::Zero();  // of D H D, D = diag(1/L I3, I3), ascending
   std::string message;
@@ -105,14 +154,30 @@ double ProjectivePointToPlane(const Eigen::Vector3d& p,
                               const Eigen::Vector3d& n,
                               Eigen::Matrix<double, 1, 6>* a);
 
+// The photometric row for a transformed source point p = T p_s (target frame)
+// whose source intensity is source_intensity, against one level of the target's
+// pyramid (pixel grid of K): returns false when p is behind the camera or projects
+// outside [0, W - 1) x [0, H - 1); else sets r and the 1x6 A above.
+bool ProjectivePhotometric(const Eigen::Vector3d& p,
+                           double source_intensity,
+                           const IntensityPyramid::Level& level,
+                           const PinholeIntrinsics& K,
+                           double* residual,
+                           Eigen::Matrix<double, 1, 6>* a);
+
 // Registers `source` (current frame) to `target` (the model rendered with
 // `target_intrinsics`). Source maps may have any size (their pixels are only
 // iterated); throws InputError when a map's arrays do not match its size or the
 // intrinsics do not match the target, InternalError for bad options.
+// source_intensity / target_intensity: pyramids on the grids of the source and
+// target maps (both or neither; empty or photometric_weight 0 = depth only), with at
+// least num_levels levels.
 ProjectiveIcpResult RegisterProjective(const VertexNormalMap& source,
                                        const VertexNormalMap& target,
                                        const PinholeIntrinsics& target_intrinsics,
                                        const SE3& initial_target_from_source,
-                                       const ProjectiveIcpOptions& options);
+                                       const ProjectiveIcpOptions& options,
+                                       const IntensityPyramid* source_intensity = nullptr,
+                                       const IntensityPyramid* target_intensity = nullptr);
 
 }  // namespace lisfm

@@ -5,6 +5,7 @@
 
 #include <chrono>
 #include <cmath>
+#include <utility>
 
 #include "core/errors.h"
 #include "core/option_check.h"
@@ -25,6 +26,7 @@ bool RgbdFusionOptions::Check() const {
   CHECK_OPTION_GE(min_depth_m, 0.0);
   CHECK_OPTION_GT(max_depth_m, min_depth_m);
   CHECK_OPTION_GT(max_depth_jump, 0.0);
+  CHECK_OPTION_MSG(normal_window_px, normal_window_px >= 1 && normal_window_px <= 5, "in [1, 5]");
   CHECK_OPTION_MSG(
       max_incidence_deg, max_incidence_deg > 0 && max_incidence_deg <= 90, "in (0, 90]");
   CHECK_OPTION_GT(bilateral_sigma_px, 0.0);
@@ -136,7 +138,8 @@ void RgbdFusion::Preprocess(const std::vector<float>& depth_m, const std::vector
                          options_.min_depth_m,
                          options_.max_depth_m,
                          options_.max_depth_jump,
-                         &frame_.map);
+                         &frame_.map,
+                         options_.normal_window_px);
   // Oblique observations: |n . q| / |q| = cos of the angle between normal and ray.
   const float min_cos = static_cast<float>(std::cos(options_.max_incidence_deg * M_PI / 180.0));
   tbb::parallel_for(size_t{0}, n, [&](size_t i) {
@@ -153,6 +156,24 @@ RgbdFrameResult RgbdFusion::AddFrame(const std::vector<float>& depth_m,
   RgbdFrameResult result;
   auto t0 = std::chrono::steady_clock::now();
   Preprocess(depth_m, rgb);
+
+  // Intensity pyramid of this frame: the photometric source now, the target next.
+  const bool tracking_next = !world_from_camera || num_frames_ == 0;
+  const bool photometric = icp_options_.photometric_weight > 0 && !rgb.empty();
+  if (photometric && tracking_next) {
+    intensity_.resize(frame_.colors.size());
+    tbb::parallel_for(size_t{0}, frame_.colors.size(), [&](size_t i) {
+      const std::array<uint8_t, 3>& c = frame_.colors[i];
+      intensity_[i] = (0.299f * c[0] + 0.587f * c[1] + 0.114f * c[2]) * (1.f / 255.f);
+    });
+    BuildIntensityPyramid(intensity_,
+                          intrinsics_.width,
+                          intrinsics_.height,
+                          icp_options_.num_levels,
+                          &intensity_pyramid_);
+  } else {
+    intensity_pyramid_.levels.clear();
+  }
   result.preprocess_ms = MsSince(t0);
 
   t0 = std::chrono::steady_clock::now();
@@ -162,7 +183,13 @@ RgbdFrameResult RgbdFusion::AddFrame(const std::vector<float>& depth_m,
     // model_ holds the model at previous_ (rendered after the last fusion).
     // previous_from_current: the last motion (constant velocity) or none.
     const SE3 initial = options_.constant_velocity ? previous_motion_ : SE3();
-    result.icp = RegisterProjective(frame_.map, model_, intrinsics_, initial, icp_options_);
+    result.icp = RegisterProjective(frame_.map,
+                                    model_,
+                                    intrinsics_,
+                                    initial,
+                                    icp_options_,
+                                    &intensity_pyramid_,
+                                    &previous_intensity_pyramid_);
     result.tracked = result.icp.num_inliers >= static_cast<size_t>(icp_options_.min_inliers) &&
                      result.icp.target_from_source.translation().allFinite();
     result.world_from_camera =
@@ -180,10 +207,29 @@ RgbdFrameResult RgbdFusion::AddFrame(const std::vector<float>& depth_m,
     // The next frame's tracking target; only needed while tracking.
     map_.RenderVertexNormalMap(
         result.world_from_camera, intrinsics_, 0.0, options_.model_splat_px, &model_);
+    if (!intensity_pyramid_.empty() && !frame_.colors.empty()) {
+      // The photometric target: the model's colour rendered at this pose (world-anchored
+      // texture), this frame's intensity where no surfel is seen.
+      std::vector<uint32_t> index;
+      map_.RenderIndexMap(
+          result.world_from_camera, intrinsics_, 0.0, options_.model_splat_px, &index);
+      const std::vector<Surfel>& surfels = map_.surfels();
+      tbb::parallel_for(size_t{0}, index.size(), [&](size_t i) {
+        if (index[i] == SurfelMap::kNoSurfel) return;
+        const std::array<uint8_t, 3>& c = surfels[index[i]].color;
+        intensity_[i] = (0.299f * c[0] + 0.587f * c[1] + 0.114f * c[2]) * (1.f / 255.f);
+      });
+      BuildIntensityPyramid(intensity_,
+                            intrinsics_.width,
+                            intrinsics_.height,
+                            icp_options_.num_levels,
+                            &intensity_pyramid_);
+    }
   }
   result.track_ms += MsSince(t0);
   previous_motion_ = num_frames_ == 0 ? SE3() : previous_.Inverse() * result.world_from_camera;
   previous_ = result.world_from_camera;
+  std::swap(intensity_pyramid_, previous_intensity_pyramid_);
   ++num_frames_;
   return result;
 }
