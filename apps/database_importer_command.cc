@@ -2,6 +2,9 @@
 // LiDAR-proxy co-visibility pair list (importers/database_importer.h) from a
 // sequence folder, the pose_slam output and lio's keyframe scans; or from the
 // HILTI 2022 extract that GTSFM ships (--input_type hilti_gtsfm).
+// Under `mpirun -np N` the co-visibility work is split across the ranks
+// (core/mpi); rank 0 writes every output, byte for byte as one process does.
+#include <optional>
 #include <string>
 
 #include "apps/commands.h"
@@ -9,6 +12,7 @@
 #include "core/errors.h"
 #include "core/file_utils.h"
 #include "core/logging.h"
+#include "core/mpi/mpi_world.h"
 #include "core/options.h"
 #include "importers/database_importer.h"
 
@@ -59,12 +63,19 @@ int RunDatabaseImporter(int argc, char** argv) {
     if (input.pose_slam_path.empty()) throw UsageError("--pose_slam_path is required");
     if (input.lio_path.empty()) throw UsageError("--lio_path is required");
   }
-  OutputFolder output(output_path, overwrite);  // checked before the work
+  if (!mpi::IsRoot()) SetLogLevel(LogLevel::kError);          // rank 0 reports
+  std::optional<OutputFolder> output;                         // rank 0 writes
+  if (mpi::IsRoot()) output.emplace(output_path, overwrite);  // checked before the work
 
   LogStage("database_importer: " + input.input_path);
-  const DatabaseImporterSummary s = RunDatabaseImporter(input, importer, output.path());
-  options.WriteConfig(output.File("database_importer_config.yaml"));
-  output.Commit();
+  const DatabaseImporterSummary s =
+      RunDatabaseImporter(input,
+                          importer,
+                          output ? output->path() : std::string(),
+                          mpi::Active() ? WorkListRunner(mpi::RunWorkList) : WorkListRunner());
+  if (s.share_only || !output) return 0;  // this rank's share went to rank 0
+  options.WriteConfig(output->File("database_importer_config.yaml"));
+  output->Commit();
   LogInfo(
       "database_importer: {} cameras, {} images ({} left out), {} rig frames; {} pairs "
       "({} co-visibility{}, {} rig, {} temporal, {} priors); {} of {} constraints written; "
