@@ -125,8 +125,8 @@ int RunPoseSlam(int argc, char** argv) {
   AddPoseSlamOptions(&options, &pose_slam);
   if (!options.Parse(argc, argv)) return 0;
   pose_slam.solver.verbose = GetLogLevel() <= LogLevel::kDebug;
-  if (!mpi::IsRoot()) SetLogLevel(LogLevel::kWarning);  // rank 0 reports
-  std::optional<OutputFolder> output_folder;  // rank 0 writes
+  if (!mpi::IsRoot()) SetLogLevel(LogLevel::kError);                 // rank 0 reports
+  std::optional<OutputFolder> output_folder;                         // rank 0 writes
   if (mpi::IsRoot()) output_folder.emplace(output_path, overwrite);  // checked before the work
 
   const auto start = std::chrono::steady_clock::now();

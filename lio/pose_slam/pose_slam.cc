@@ -487,11 +487,15 @@ PoseSlamResult RunPoseSlamInArena(const PoseSlamInput& input,
     }
     std::vector<double> costs;
     for (const auto& [i, j] : pairs) costs.push_back(cloud_bytes[i] + cloud_bytes[j]);
+    // timings.icp: the wall time of the whole split (this process's share, then
+    // waiting for the others' results) less this process's cloud loading.
+    const auto runner_start = std::chrono::steady_clock::now();
     const auto encoded = callbacks.pair_runner(costs, [&](const std::vector<size_t>& subset) {
       std::vector<std::string> out;
       for (const PairResult& r : register_pairs(subset)) out.push_back(EncodePairResult(r));
       return out;
     });
+    result.timings.icp = SecondsSince(runner_start) - result.timings.load_clouds;
     if (!encoded) {
       result.share_only = true;
       return result;
