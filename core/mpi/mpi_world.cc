@@ -187,8 +187,8 @@ std::optional<std::vector<std::string>> RunWorkList(const std::vector<double>& c
   BroadcastInts(outcome, 2);
   if (outcome[0] != 0) {
     error.resize(static_cast<size_t>(outcome[1]));
-    Check(MPI_Ibcast(error.data(), static_cast<int>(outcome[1]), MPI_CHAR, 0, MPI_COMM_WORLD,
-                     &request),
+    Check(MPI_Ibcast(
+              error.data(), static_cast<int>(outcome[1]), MPI_CHAR, 0, MPI_COMM_WORLD, &request),
           "MPI_Ibcast");
     Wait(&request);
     throw RankError(error, static_cast<int>(outcome[0]));

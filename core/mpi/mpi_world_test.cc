@@ -92,11 +92,11 @@ TEST(ByteEncoding, RoundTripsPosesAndMatricesBitForBit) {
     const Mat6 m_back = reader.GetMatrix<Mat6>();
     EXPECT_EQ(reader.GetString(), "pair");
     EXPECT_TRUE(reader.AtEnd());
-    EXPECT_EQ(std::memcmp(back.rotation().coeffs().data(), pose.rotation().coeffs().data(),
-                          4 * sizeof(double)),
-              0);
-    EXPECT_EQ(std::memcmp(back.translation().data(), pose.translation().data(),
-                          3 * sizeof(double)),
+    EXPECT_EQ(
+        std::memcmp(
+            back.rotation().coeffs().data(), pose.rotation().coeffs().data(), 4 * sizeof(double)),
+        0);
+    EXPECT_EQ(std::memcmp(back.translation().data(), pose.translation().data(), 3 * sizeof(double)),
               0);
     EXPECT_EQ(std::memcmp(m_back.data(), m.data(), 36 * sizeof(double)), 0);
   }

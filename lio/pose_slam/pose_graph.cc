@@ -192,10 +192,8 @@ PoseGraph::FactorId PoseGraph::AddRelativePoseFactor(
                   "PoseGraph: information matrix is not positive definite");
   // information = L L^T (L lower) = (L^T)^T (L^T): the residual is L^T e.
   const Mat6 sqrt_information = llt.matrixL().transpose();
-  return problem_->AddResidualBlock(RelativePoseFactor::Create(i_from_j, sqrt_information),
-                                    MakeLoss(loss),
-                                    poses_[i],
-                                    poses_[j]);
+  return problem_->AddResidualBlock(
+      RelativePoseFactor::Create(i_from_j, sqrt_information), MakeLoss(loss), poses_[i], poses_[j]);
 }
 
 double PoseGraph::SquaredResidual(FactorId factor) const {
