@@ -577,11 +577,20 @@ class Pipeline {
   // Runs one command of `stage`; throws naming the stage, the command and the log's tail.
   void Exec(StageState* stage, const std::vector<std::string>& args);
   std::vector<std::string> Lisfm(const std::string& command) const { return {self_, command}; }
-  // `lisfm command` under `mpirun --oversubscribe -np mpi_ranks` when mpi_ranks > 0
-  // (the command splits its work across the ranks; core/mpi/mpi_world.h).
+  // `lisfm command` under `mpirun --oversubscribe --bind-to none -np mpi_ranks` when
+  // mpi_ranks > 0 (the command splits its work across the ranks; core/mpi/mpi_world.h).
+  // Unbound: a rank bound to one core runs SuiteSparse's OpenMP with one thread, which
+  // changes the last digits of pose_slam's covariances.
   std::vector<std::string> MpiLisfm(const std::string& command) const {
     if (mpi_ranks <= 0) return Lisfm(command);
-    return {"mpirun", "--oversubscribe", "-np", std::to_string(mpi_ranks), self_, command};
+    return {"mpirun",
+            "--oversubscribe",
+            "--bind-to",
+            "none",
+            "-np",
+            std::to_string(mpi_ranks),
+            self_,
+            command};
   }
   std::vector<std::string> Colmap(const std::string& command) const { return {colmap_, command}; }
   void Append(const std::string& key, std::vector<std::string>* args) const {
@@ -1261,7 +1270,8 @@ int Pipeline::Run(int argc, char** argv) {
   options.AddString("python_path", &python_path, "python3 with matplotlib, for the plots");
   options.AddInt("mpi_ranks",
                  &mpi_ranks,
-                 "run pose_slam and database_importer under `mpirun --oversubscribe -np N` "
+                 "run pose_slam and database_importer under `mpirun --oversubscribe --bind-to "
+                 "none -np N` "
                  "(0: one process); outputs are the same for any N",
                  OptionRange::AtLeast(0));
   if (!options.Parse(static_cast<int>(args.size()), args.data())) return 0;

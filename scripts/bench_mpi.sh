@@ -57,7 +57,9 @@ now() { date +%s.%N; }
 # run NAME RANKS THREADS: pose_slam then database_importer; RANKS 0 = no mpirun.
 run() {
   local name=$1 ranks=$2 threads=$3 launcher=() ps_threads=() db_threads=()
-  [ "$ranks" -gt 0 ] && launcher=(mpirun --oversubscribe -np "$ranks")
+  # Unbound ranks: bound to one core, SuiteSparse's OpenMP runs one thread and
+  # pose_slam's covariances change in their last digits.
+  [ "$ranks" -gt 0 ] && launcher=(mpirun --oversubscribe --bind-to none -np "$ranks")
   if [ "$threads" -gt 0 ]; then
     ps_threads=(--num_threads "$threads" --Solver.num_threads "$threads")
     db_threads=(--DatabaseImporter.num_threads "$threads")

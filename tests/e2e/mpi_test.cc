@@ -77,7 +77,7 @@ class MpiTest : public ::testing::Test {
   // `lisfm <args>`, under mpirun with `ranks` processes when ranks > 0.
   static int Lisfm(int ranks, const std::string& args, std::string* out) {
     const std::string mpirun =
-        ranks > 0 ? "mpirun --oversubscribe -np " + std::to_string(ranks) + " " : "";
+        ranks > 0 ? "mpirun --oversubscribe --bind-to none -np " + std::to_string(ranks) + " " : "";
     return test::RunCommand(mpirun + test::LisfmBinary() + " " + args, out);
   }
   static std::string PoseSlamArgs(const std::string& lio, const std::string& output) {
