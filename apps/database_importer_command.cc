@@ -2,6 +2,9 @@
 // LiDAR-proxy co-visibility pair list (importers/database_importer.h) from a
 // sequence folder, the pose_slam output and lio's keyframe scans; or from the
 // HILTI 2022 extract that GTSFM ships (--input_type hilti_gtsfm).
+// Under `mpirun -np N` the co-visibility work is split across the ranks
+// (core/mpi); rank 0 writes every output, byte for byte as one process does.
+#include <optional>
 #include <string>
 
 #include "apps/commands.h"
@@ -9,6 +12,7 @@
 #include "core/errors.h"
 #include "core/file_utils.h"
 #include "core/logging.h"
+#include "core/mpi/mpi_world.h"
 #include "core/options.h"
 #include "importers/database_importer.h"
 
@@ -63,12 +67,19 @@ int RunDatabaseImporter(int argc, char** argv) {
     CheckDirExists(input.lio_path, "--lio_path folder");
     CheckDirExists(JoinPaths(input.lio_path, "keyframes"), "lio keyframes folder");
   }
-  OutputFolder output(output_path, overwrite);  // checked before the work
+  if (!mpi::IsRoot()) SetLogLevel(LogLevel::kError);          // rank 0 reports
+  std::optional<OutputFolder> output;                         // rank 0 writes
+  if (mpi::IsRoot()) output.emplace(output_path, overwrite);  // checked before the work
 
   LogStage("database_importer: " + input.input_path);
-  const DatabaseImporterSummary s = RunDatabaseImporter(input, importer, output.path());
-  options.WriteConfig(output.File("database_importer_config.yaml"));
-  output.Commit();
+  const DatabaseImporterSummary s =
+      RunDatabaseImporter(input,
+                          importer,
+                          output ? output->path() : std::string(),
+                          mpi::Active() ? WorkListRunner(mpi::RunWorkList) : WorkListRunner());
+  if (s.share_only || !output) return 0;  // this rank's share went to rank 0
+  options.WriteConfig(output->File("database_importer_config.yaml"));
+  output->Commit();
   LogInfo(
       "database_importer: {} cameras, {} images ({} left out), {} rig frames; {} pairs "
       "({} co-visibility{}, {} rig, {} temporal, {} priors); {} of {} constraints written; "

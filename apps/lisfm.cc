@@ -7,6 +7,7 @@
 
 #include "apps/commands.h"
 #include "core/errors.h"
+#include "core/mpi/mpi_world.h"
 #include "core/options.h"
 
 #ifndef LISFM_VERSION
@@ -97,6 +98,13 @@ int Main(int argc, char** argv) {
   for (const auto& c : Commands()) {
     names.push_back(c.name);
     if (c.name == name) {
+      // Under `mpirun -np N` (N > 1) only the commands that split their work
+      // across the ranks run; any other would run N times into one output.
+      if (mpi::WorldSize() > 1 && name != "pose_slam" && name != "database_importer") {
+        throw UsageError("lisfm " + name +
+                         " does not run under mpirun with more than one process (only "
+                         "pose_slam and database_importer do)");
+      }
       std::string arg0 = "lisfm " + name;
       std::vector<char*> args;
       args.push_back(arg0.data());
@@ -113,14 +121,23 @@ int Main(int argc, char** argv) {
 }  // namespace
 }  // namespace lisfm
 
+// Under mpirun every rank runs main; a rank's failure ends the run on every
+// rank with a non-zero exit code (core/mpi/mpi_world.h).
 int main(int argc, char** argv) {
+  lisfm::mpi::Init(&argc, &argv);
+  int code = 0;
   try {
-    return lisfm::Main(argc, argv);
+    code = lisfm::Main(argc, argv);
+  } catch (const lisfm::mpi::RankError& e) {
+    // Every rank has this error: printed once.
+    if (lisfm::mpi::IsRoot()) std::cerr << "error: " << e.what() << "\n";
+    return lisfm::mpi::Finish(e.exit_code(), /*collective_error=*/true);
   } catch (const lisfm::UsageError& e) {
     std::cerr << "error: " << e.what() << "\n";
-    return 2;
+    code = 2;
   } catch (const std::exception& e) {
     std::cerr << "error: " << e.what() << "\n";
-    return 1;
+    code = 1;
   }
+  return lisfm::mpi::Finish(code, /*collective_error=*/false);
 }

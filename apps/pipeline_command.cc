@@ -574,6 +574,7 @@ class Pipeline {
   std::string start_stage, end_stage, scripts_path = LISFM_SOURCE_DIR "/scripts";
   std::string python_path = "/usr/bin/python3";
   bool overwrite = false, compare_stock = false, compare_exhaustive = false;
+  int mpi_ranks = 0;  // > 0: pose_slam and database_importer under mpirun -np mpi_ranks
 
   int Run(int argc, char** argv);
 
@@ -586,6 +587,21 @@ class Pipeline {
   // Runs one command of `stage`; throws naming the stage, the command and the log's tail.
   void Exec(StageState* stage, const std::vector<std::string>& args);
   std::vector<std::string> Lisfm(const std::string& command) const { return {self_, command}; }
+  // `lisfm command` under `mpirun --oversubscribe --bind-to none -np mpi_ranks` when
+  // mpi_ranks > 0 (the command splits its work across the ranks; core/mpi/mpi_world.h).
+  // Unbound: a rank bound to one core runs SuiteSparse's OpenMP with one thread, which
+  // changes the last digits of pose_slam's covariances.
+  std::vector<std::string> MpiLisfm(const std::string& command) const {
+    if (mpi_ranks <= 0) return Lisfm(command);
+    return {"mpirun",
+            "--oversubscribe",
+            "--bind-to",
+            "none",
+            "-np",
+            std::to_string(mpi_ranks),
+            self_,
+            command};
+  }
   std::vector<std::string> Colmap(const std::string& command) const { return {colmap_, command}; }
   void Append(const std::string& key, std::vector<std::string>* args) const {
     if (config_.count(key)) config_.at(key).AppendTo(args);
@@ -641,12 +657,12 @@ void Pipeline::RunStage(StageState* stage) {
     Append(name, &a);
     Exec(stage, a);
   } else if (name == "pose_slam") {
-    std::vector<std::string> a = Lisfm("pose_slam");
+    std::vector<std::string> a = MpiLisfm("pose_slam");
     a.insert(a.end(), {"--input_path", sequence_, "--lio_path", Dir("lio"), "--output_path", dir});
     Append(name, &a);
     Exec(stage, a);
   } else if (name == "database_importer") {
-    std::vector<std::string> a = Lisfm("database_importer");
+    std::vector<std::string> a = MpiLisfm("database_importer");
     a.insert(a.end(),
              {"--input_path",
               sequence_,
@@ -1262,6 +1278,12 @@ int Pipeline::Run(int argc, char** argv) {
   options.AddString(
       "scripts_path", &scripts_path, "folder of pipeline_plots.py (the source tree's scripts/)");
   options.AddString("python_path", &python_path, "python3 with matplotlib, for the plots");
+  options.AddInt("mpi_ranks",
+                 &mpi_ranks,
+                 "run pose_slam and database_importer under `mpirun --oversubscribe --bind-to "
+                 "none -np N` "
+                 "(0: one process); outputs are the same for any N",
+                 OptionRange::AtLeast(0));
   if (!options.Parse(static_cast<int>(args.size()), args.data())) return 0;
 
   // Stages: names checked first (usage errors before any file access).
@@ -1396,9 +1418,10 @@ int Pipeline::Run(int argc, char** argv) {
     std::string y = "# lisfm pipeline: effective options of the last run\n";
     y += "input_path: " + input_path + "\noutput_path: " + output_path + "\n";
     y += "rig_path: \"" + rig_path + "\"\ncolmap_path: " + colmap_path + "\n";
-    y += fmt::format("compare_stock: {}\ncompare_exhaustive: {}\n",
+    y += fmt::format("compare_stock: {}\ncompare_exhaustive: {}\nmpi_ranks: {}\n",
                      compare_stock ? 1 : 0,
-                     compare_exhaustive ? 1 : 0);
+                     compare_exhaustive ? 1 : 0,
+                     mpi_ranks);
     y += "config_path: \"" + config_path + "\"\nstages:\n";
     for (const auto& [key, list] : config_) {
       y += "  " + key + ":\n";

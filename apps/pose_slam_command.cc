@@ -3,11 +3,15 @@
 // velocity at rests, one pose graph; writes the corrected trajectory, the
 // optimised keyframes, the kept ICP constraints, the keyframe covariances, the
 // map rebuilt from the optimised keyframes and a JSON summary.
+// Under `mpirun -np N` the ICP pairs are split across the ranks (core/mpi);
+// rank 0 gets every pair's result, solves and writes; the outputs are those of
+// one process, byte for byte.
 #include <fmt/format.h>
 
 #include <chrono>
 #include <cmath>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -20,6 +24,7 @@
 #include "core/io/lidar_constraints_io.h"
 #include "core/io/trajectory_io.h"
 #include "core/logging.h"
+#include "core/mpi/mpi_world.h"
 #include "core/options.h"
 #include "core/point_cloud.h"
 #include "core/progress.h"
@@ -120,7 +125,9 @@ int RunPoseSlam(int argc, char** argv) {
   AddPoseSlamOptions(&options, &pose_slam);
   if (!options.Parse(argc, argv)) return 0;
   pose_slam.solver.verbose = GetLogLevel() <= LogLevel::kDebug;
-  OutputFolder output(output_path, overwrite);  // checked before the work
+  if (!mpi::IsRoot()) SetLogLevel(LogLevel::kError);                 // rank 0 reports
+  std::optional<OutputFolder> output_folder;                         // rank 0 writes
+  if (mpi::IsRoot()) output_folder.emplace(output_path, overwrite);  // checked before the work
 
   const auto start = std::chrono::steady_clock::now();
   LogStage("pose_slam: reading " + input_path + " and " + lio_path);
@@ -162,8 +169,11 @@ int RunPoseSlam(int argc, char** argv) {
     progress = std::make_unique<ProgressReporter>("pose_slam: Bayesian ICP pairs", total);
   };
   callbacks.on_icp_pair = [&] { progress->Add(); };
+  if (mpi::Active()) callbacks.pair_runner = mpi::RunWorkList;
   const PoseSlamResult result = RunPoseSlam(input, pose_slam, callbacks);
   if (progress) progress->Finish();
+  if (result.share_only || !mpi::IsRoot()) return 0;  // this rank's pairs went to rank 0
+  const OutputFolder& output = *output_folder;
 
   LogStage("pose_slam: writing " + output_path);
   const auto map_start = std::chrono::steady_clock::now();
@@ -195,7 +205,7 @@ int RunPoseSlam(int argc, char** argv) {
   WriteFileAtomically(output.File("pose_slam_summary.json"),
                       SummaryJson(result, map_s, total_s).dump(2) + "\n");
   options.WriteConfig(output.File("pose_slam_config.yaml"));
-  output.Commit();
+  output_folder->Commit();
 
   const PoseSlamPairCounts& p = result.pairs;
   LogInfo(

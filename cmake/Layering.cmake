@@ -8,6 +8,7 @@
 set(LISFM_LAYERS
   "core|lisfm_core|"
   "core/io|lisfm_core_io|core"
+  "core/mpi|lisfm_mpi|core"
   "icp|lisfm_icp|core core/io"
   "lio|lisfm_lio|core core/io icp"
   "lio/pose_slam|lisfm_pose_slam|core core/io icp lio"

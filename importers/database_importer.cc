@@ -10,6 +10,7 @@
 #include <filesystem>
 #include <fstream>
 #include <limits>
+#include <numeric>
 #include <set>
 #include <sstream>
 
@@ -25,6 +26,7 @@
 #include "core/io/trajectory_io.h"
 #include "core/logging.h"
 #include "core/option_check.h"
+#include "core/work_list.h"
 #include "icp/nearest_neighbors.h"
 #include "importers/sequence.h"
 
@@ -198,6 +200,24 @@ std::map<std::pair<int, int>, PairVotes> ComputeCovisibility(
     const std::vector<KeyframeScan>& scans,
     const std::vector<std::pair<int, int>>& scan_pairs,
     const CovisibilityOptions& options) {
+  return *ComputeCovisibility(rig, images, scans, scan_pairs, options, WorkListRunner());
+}
+
+std::map<std::pair<int, int>, PairVotes> ComputeMapCovisibility(
+    const Rig& rig,
+    const std::vector<ImporterImage>& images,
+    const std::vector<KeyframeScan>& scans,
+    const CovisibilityOptions& options) {
+  return *ComputeMapCovisibility(rig, images, scans, options, WorkListRunner());
+}
+
+std::optional<std::map<std::pair<int, int>, PairVotes>> ComputeCovisibility(
+    const Rig& rig,
+    const std::vector<ImporterImage>& images,
+    const std::vector<KeyframeScan>& scans,
+    const std::vector<std::pair<int, int>>& scan_pairs,
+    const CovisibilityOptions& options,
+    const WorkListRunner& runner) {
   THROW_CHECK(options.Check());
   for (const ImporterImage& image : images) {
     THROW_CHECK_LT(static_cast<size_t>(image.camera_index), rig.cameras.size());
@@ -224,8 +244,9 @@ std::map<std::pair<int, int>, PairVotes> ComputeCovisibility(
                 static_cast<size_t>(j) < scans.size());
     used[i] = used[j] = 1;
   }
-  std::vector<ScanData> data(scans.size());
-  // Each image belongs to the used scan nearest to it in time (within max_dt_ns).
+  // Each image belongs to the used scan nearest to it in time (within max_dt_ns),
+  // over all scan pairs (whatever share of them this process votes for).
+  std::vector<std::vector<int>> images_of_scan(scans.size());
   {
     std::vector<std::pair<TimestampNs, int>> by_time;
     for (size_t u = 0; u < scans.size(); ++u) {
@@ -246,75 +267,126 @@ std::map<std::pair<int, int>, PairVotes> ComputeCovisibility(
           best_dt = dt;
         }
       }
-      if (best >= 0) data[best].images.push_back(static_cast<int>(k));
+      if (best >= 0) images_of_scan[best].push_back(static_cast<int>(k));
     }
   }
-  tbb::parallel_for(size_t(0), scans.size(), [&](size_t s) {
-    if (!used[s]) return;
-    const KeyframeScan& scan = scans[s];
-    std::vector<Eigen::Vector3f> world;
-    world.reserve(scan.points_in_imu.size());
-    const Eigen::Matrix3f R = scan.world_from_imu.RotationMatrix().cast<float>();
-    const Eigen::Vector3f t = scan.world_from_imu.translation().cast<float>();
-    for (const auto& p : scan.points_in_imu) world.push_back(R * p + t);
-    ScanData& d = data[s];
-    d.sparse_world = VoxelDownsamplePoints(world, options.scan_voxel_size_m);
-    d.tree = std::make_unique<KdTree>(std::move(world), "keyframe scan");
-    for (int image : d.images) {
-      const SE3 cam_from_world = images[image].world_from_cam.Inverse();
-      d.cam_from_world.push_back(cam_from_world);
-      d.zbuffers.push_back(BuildZBuffer(rig.cameras[images[image].camera_index].model,
-                                        cam_from_world,
-                                        d.sparse_world,
-                                        options.zbuffer_cell_px,
-                                        options.point_footprint_m));
-    }
-  });
-
-  auto visible = [&](const ScanData& d, size_t u, const Eigen::Vector3f& p) {
-    const CameraModel& model = rig.cameras[images[d.images[u]].camera_index].model;
-    const Vec3 x = d.cam_from_world[u] * p.cast<double>();
-    Vec2 pixel;
-    if (!model.Project(x, &pixel, /*check_bounds=*/true)) return false;
-    const float front = d.zbuffers[u].At(pixel);
-    if (front < 0.f) return false;
-    const double range = x.norm();
-    return range <=
-           front * (1.0 + options.occlusion_tolerance_ratio) + options.occlusion_tolerance_m;
-  };
-
-  // Votes per scan pair, then merged in pair order.
+  // The scans of the pairs `subset` (indices into scan_pairs), then their votes.
   using Votes = std::map<std::pair<int, int>, int64_t>;
-  std::vector<Votes> pair_votes(scan_pairs.size());
   const float max_sq =
       static_cast<float>(options.max_point_distance_m * options.max_point_distance_m);
-  tbb::parallel_for(size_t(0), scan_pairs.size(), [&](size_t q) {
-    const ScanData& di = data[scan_pairs[q].first];
-    const ScanData& dj = data[scan_pairs[q].second];
-    if (di.images.empty() || dj.images.empty()) return;
-    Votes& votes = pair_votes[q];
-    std::vector<int> seen_i, seen_j;
-    uint32_t index;
-    float sq;
-    for (const Eigen::Vector3f& p : di.sparse_world) {
-      if (!dj.tree->NearestWithin(p, max_sq, &index, &sq)) continue;
-      seen_i.clear();
-      seen_j.clear();
-      for (size_t u = 0; u < di.images.size(); ++u) {
-        if (visible(di, u, p)) seen_i.push_back(di.images[u]);
+  auto vote = [&](const std::vector<size_t>& subset) {
+    std::vector<char> needed(scans.size(), 0);
+    for (size_t q : subset) needed[scan_pairs[q].first] = needed[scan_pairs[q].second] = 1;
+    std::vector<ScanData> data(scans.size());
+    for (size_t u = 0; u < scans.size(); ++u) {
+      if (needed[u]) data[u].images = images_of_scan[u];
+    }
+    tbb::parallel_for(size_t(0), scans.size(), [&](size_t s) {
+      if (!needed[s]) return;
+      const KeyframeScan& scan = scans[s];
+      std::vector<Eigen::Vector3f> world;
+      world.reserve(scan.points_in_imu.size());
+      const Eigen::Matrix3f R = scan.world_from_imu.RotationMatrix().cast<float>();
+      const Eigen::Vector3f t = scan.world_from_imu.translation().cast<float>();
+      for (const auto& p : scan.points_in_imu) world.push_back(R * p + t);
+      ScanData& d = data[s];
+      d.sparse_world = VoxelDownsamplePoints(world, options.scan_voxel_size_m);
+      d.tree = std::make_unique<KdTree>(std::move(world), "keyframe scan");
+      for (int image : d.images) {
+        const SE3 cam_from_world = images[image].world_from_cam.Inverse();
+        d.cam_from_world.push_back(cam_from_world);
+        d.zbuffers.push_back(BuildZBuffer(rig.cameras[images[image].camera_index].model,
+                                          cam_from_world,
+                                          d.sparse_world,
+                                          options.zbuffer_cell_px,
+                                          options.point_footprint_m));
       }
-      if (seen_i.empty()) continue;
-      for (size_t u = 0; u < dj.images.size(); ++u) {
-        if (visible(dj, u, p)) seen_j.push_back(dj.images[u]);
-      }
-      for (int a : seen_i) {
-        for (int b : seen_j) {
-          if (a == b) continue;
-          ++votes[{std::min(a, b), std::max(a, b)}];
+    });
+
+    auto visible = [&](const ScanData& d, size_t u, const Eigen::Vector3f& p) {
+      const CameraModel& model = rig.cameras[images[d.images[u]].camera_index].model;
+      const Vec3 x = d.cam_from_world[u] * p.cast<double>();
+      Vec2 pixel;
+      if (!model.Project(x, &pixel, /*check_bounds=*/true)) return false;
+      const float front = d.zbuffers[u].At(pixel);
+      if (front < 0.f) return false;
+      const double range = x.norm();
+      return range <=
+             front * (1.0 + options.occlusion_tolerance_ratio) + options.occlusion_tolerance_m;
+    };
+
+    // Votes per scan pair of the subset.
+    std::vector<Votes> subset_votes(subset.size());
+    tbb::parallel_for(size_t(0), subset.size(), [&](size_t e) {
+      const size_t q = subset[e];
+      const ScanData& di = data[scan_pairs[q].first];
+      const ScanData& dj = data[scan_pairs[q].second];
+      if (di.images.empty() || dj.images.empty()) return;
+      Votes& votes = subset_votes[e];
+      std::vector<int> seen_i, seen_j;
+      uint32_t index;
+      float sq;
+      for (const Eigen::Vector3f& p : di.sparse_world) {
+        if (!dj.tree->NearestWithin(p, max_sq, &index, &sq)) continue;
+        seen_i.clear();
+        seen_j.clear();
+        for (size_t u = 0; u < di.images.size(); ++u) {
+          if (visible(di, u, p)) seen_i.push_back(di.images[u]);
+        }
+        if (seen_i.empty()) continue;
+        for (size_t u = 0; u < dj.images.size(); ++u) {
+          if (visible(dj, u, p)) seen_j.push_back(dj.images[u]);
+        }
+        for (int a : seen_i) {
+          for (int b : seen_j) {
+            if (a == b) continue;
+            ++votes[{std::min(a, b), std::max(a, b)}];
+          }
         }
       }
+    });
+    return subset_votes;
+  };
+  std::vector<Votes> pair_votes;
+  if (!runner) {
+    std::vector<size_t> all(scan_pairs.size());
+    std::iota(all.begin(), all.end(), size_t(0));
+    pair_votes = vote(all);
+  } else {
+    // Cost of a pair: the points of its two scans.
+    std::vector<double> costs;
+    for (const auto& [i, j] : scan_pairs) {
+      costs.push_back(
+          static_cast<double>(scans[i].points_in_imu.size() + scans[j].points_in_imu.size()));
     }
-  });
+    const auto encoded = runner(costs, [&](const std::vector<size_t>& subset) {
+      std::vector<std::string> out;
+      for (const Votes& votes : vote(subset)) {
+        ByteWriter writer;
+        writer.Put<uint64_t>(votes.size());
+        for (const auto& [pair, n] : votes) {
+          writer.Put<int32_t>(pair.first);
+          writer.Put<int32_t>(pair.second);
+          writer.Put<int64_t>(n);
+        }
+        out.push_back(writer.Take());
+      }
+      return out;
+    });
+    if (!encoded) return std::nullopt;
+    for (const std::string& bytes : *encoded) {
+      ByteReader reader(bytes);
+      Votes votes;
+      const uint64_t n = reader.Get<uint64_t>();
+      for (uint64_t k = 0; k < n; ++k) {
+        const int a = reader.Get<int32_t>();
+        const int b = reader.Get<int32_t>();
+        votes[{a, b}] = reader.Get<int64_t>();
+      }
+      pair_votes.push_back(std::move(votes));
+    }
+  }
+  // Merged in pair order.
   std::map<std::pair<int, int>, PairVotes> result;
   for (size_t q = 0; q < scan_pairs.size(); ++q) {
     for (const auto& [pair, n] : pair_votes[q]) {
@@ -327,11 +399,12 @@ std::map<std::pair<int, int>, PairVotes> ComputeCovisibility(
   return result;
 }
 
-std::map<std::pair<int, int>, PairVotes> ComputeMapCovisibility(
+std::optional<std::map<std::pair<int, int>, PairVotes>> ComputeMapCovisibility(
     const Rig& rig,
     const std::vector<ImporterImage>& images,
     const std::vector<KeyframeScan>& scans,
-    const CovisibilityOptions& options) {
+    const CovisibilityOptions& options,
+    const WorkListRunner& runner) {
   THROW_CHECK(options.Check());
   for (const ImporterImage& image : images) {
     THROW_CHECK_LT(static_cast<size_t>(image.camera_index), rig.cameras.size());
@@ -355,8 +428,8 @@ std::map<std::pair<int, int>, PairVotes> ComputeMapCovisibility(
   std::vector<double> min_view_cos;
   for (const RigCamera& camera : rig.cameras) min_view_cos.push_back(MinViewCosine(camera.model));
   // Per image: the visible map points, ascending.
-  std::vector<std::vector<uint32_t>> visible(n);
-  tbb::parallel_for(0, n, [&](int a) {
+  auto visible_points = [&](int a) {
+    std::vector<uint32_t> visible_a;
     const CameraModel& model = rig.cameras[images[a].camera_index].model;
     const SE3 cam_from_world = images[a].world_from_cam.Inverse();
     // Map points in the image (within max_range): index, pixel, range.
@@ -390,10 +463,35 @@ std::map<std::pair<int, int>, PairVotes> ComputeMapCovisibility(
       if (front < 0.f) continue;
       if (p.range <=
           front * (1.0 + options.occlusion_tolerance_ratio) + options.occlusion_tolerance_m) {
-        visible[a].push_back(p.index);
+        visible_a.push_back(p.index);
       }
     }
-  });
+    return visible_a;
+  };
+  std::vector<std::vector<uint32_t>> visible(n);
+  if (!runner) {
+    tbb::parallel_for(0, n, [&](int a) { visible[a] = visible_points(a); });
+  } else {
+    // Every image projects the whole map: equal costs.
+    const auto encoded =
+        runner(std::vector<double>(n, 1.0), [&](const std::vector<size_t>& subset) {
+          std::vector<std::string> out(subset.size());
+          tbb::parallel_for(size_t(0), subset.size(), [&](size_t e) {
+            const std::vector<uint32_t> v = visible_points(static_cast<int>(subset[e]));
+            ByteWriter writer;
+            writer.Put<uint64_t>(v.size());
+            for (uint32_t k : v) writer.Put<uint32_t>(k);
+            out[e] = writer.Take();
+          });
+          return out;
+        });
+    if (!encoded) return std::nullopt;
+    for (int a = 0; a < n; ++a) {
+      ByteReader reader((*encoded)[a]);
+      visible[a].resize(reader.Get<uint64_t>());
+      for (uint32_t& k : visible[a]) k = reader.Get<uint32_t>();
+    }
+  }
   // The images seeing each map point (compressed rows, images ascending).
   std::vector<uint32_t> row_start(map.size() + 1, 0);
   for (int a = 0; a < n; ++a) {
@@ -742,7 +840,8 @@ std::string JsonNumber(double v) { return fmt::format("{:.6g}", v); }
 
 DatabaseImporterSummary RunDatabaseImporter(const DatabaseImporterInput& input,
                                             const DatabaseImporterOptions& options,
-                                            const std::string& output_dir) {
+                                            const std::string& output_dir,
+                                            const WorkListRunner& runner) {
   THROW_CHECK(options.Check());
   const auto start = std::chrono::steady_clock::now();
   DatabaseImporterSummary summary;
@@ -948,6 +1047,7 @@ DatabaseImporterSummary RunDatabaseImporter(const DatabaseImporterInput& input,
   std::map<std::pair<int, int>, PairVotes> votes;
   std::vector<KeyframeScan> scans;
   bool fallback = constraints.empty() || hilti;
+  bool ran_runner = false;
   if (constraints.empty()) {
     LogWarning(
         "database_importer: {} holds no constraints: pairs from the pose priors instead "
@@ -986,7 +1086,13 @@ DatabaseImporterSummary RunDatabaseImporter(const DatabaseImporterInput& input,
     CheckDirExists(JoinPaths(input.lio_path, "keyframes"), "--lio_path keyframes folder");
     if (options.covisibility.source == "map") {
       for (TimestampNs t : keyframe_stamps) scan_index(t);
-      votes = ComputeMapCovisibility(rig, images, scans, options.covisibility);
+      auto map_votes = ComputeMapCovisibility(rig, images, scans, options.covisibility, runner);
+      ran_runner = true;
+      if (!map_votes) {
+        summary.share_only = true;
+        return summary;
+      }
+      votes = std::move(*map_votes);
     }
     std::set<std::pair<TimestampNs, TimestampNs>> seen;
     for (const LidarConstraintRecord& r : constraints) {
@@ -1008,8 +1114,20 @@ DatabaseImporterSummary RunDatabaseImporter(const DatabaseImporterInput& input,
       for (size_t u = 0; u < scans.size(); ++u) {
         scan_pairs.push_back({static_cast<int>(u), static_cast<int>(u)});
       }
-      votes = ComputeCovisibility(rig, images, scans, scan_pairs, options.covisibility);
+      auto pair_votes =
+          ComputeCovisibility(rig, images, scans, scan_pairs, options.covisibility, runner);
+      ran_runner = true;
+      if (!pair_votes) {
+        summary.share_only = true;
+        return summary;
+      }
+      votes = std::move(*pair_votes);
     }
+  }
+  if (runner && !ran_runner &&
+      !runner({}, [](const std::vector<size_t>&) { return std::vector<std::string>(); })) {
+    summary.share_only = true;  // nothing to share: rank 0 writes
+    return summary;
   }
   summary.num_covisibility_votes_pairs = votes.size();
   const std::vector<SelectedPair> pairs =

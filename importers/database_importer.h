@@ -77,6 +77,7 @@
 #include "core/time.h"
 #include "core/trajectory.h"
 #include "core/types.h"
+#include "core/work_list.h"
 
 namespace lisfm {
 
@@ -177,6 +178,26 @@ std::map<std::pair<int, int>, PairVotes> ComputeMapCovisibility(
     const std::vector<KeyframeScan>& scans,
     const CovisibilityOptions& options);
 
+// The same with the heavy part run by `runner` (core/work_list.h; empty: here):
+// the scan pairs' votes (ComputeCovisibility), the images' visible map points
+// (ComputeMapCovisibility; the votes from them are counted where the runner
+// returns the results). std::nullopt where the runner returned std::nullopt (an
+// MPI rank other than 0: its share went to rank 0). Results do not depend on
+// how the runner splits the work.
+std::optional<std::map<std::pair<int, int>, PairVotes>> ComputeCovisibility(
+    const Rig& rig,
+    const std::vector<ImporterImage>& images,
+    const std::vector<KeyframeScan>& scans,
+    const std::vector<std::pair<int, int>>& scan_pairs,
+    const CovisibilityOptions& options,
+    const WorkListRunner& runner);
+std::optional<std::map<std::pair<int, int>, PairVotes>> ComputeMapCovisibility(
+    const Rig& rig,
+    const std::vector<ImporterImage>& images,
+    const std::vector<KeyframeScan>& scans,
+    const CovisibilityOptions& options,
+    const WorkListRunner& runner);
+
 // Camera index pairs (a < b) of the rig whose views overlap (header comment).
 std::vector<std::pair<int, int>> OverlappingRigCameras(const Rig& rig,
                                                        const CovisibilityOptions& options);
@@ -240,14 +261,22 @@ struct DatabaseImporterSummary {
   size_t num_pairs_temporal = 0;
   size_t num_pairs_priors = 0;
   bool priors_fallback = false;
+  // Only this process's share of the co-visibility was computed and sent to
+  // the process that writes (RunDatabaseImporter's runner); nothing written.
+  bool share_only = false;
   double seconds_read = 0, seconds_covisibility = 0, seconds_write = 0, seconds_total = 0;
 };
 
 // Runs the importer and writes every output file into `output_dir` (an
 // existing, empty folder: the caller's OutputFolder). Throws InputError
 // naming the file for bad input.
+// `runner` (core/work_list.h), if set, runs the co-visibility work (see
+// ComputeCovisibility) and is called exactly once (with an empty list when
+// there is no co-visibility to compute); where it returns std::nullopt the
+// importer returns right after it with share_only and writes nothing.
 DatabaseImporterSummary RunDatabaseImporter(const DatabaseImporterInput& input,
                                             const DatabaseImporterOptions& options,
-                                            const std::string& output_dir);
+                                            const std::string& output_dir,
+                                            const WorkListRunner& runner = {});
 
 }  // namespace lisfm

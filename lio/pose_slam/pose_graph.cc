@@ -97,6 +97,22 @@ void PoseGraph::CheckIndex(int index) const {
                   "PoseGraph: pose index " << index << " of " << num_poses());
 }
 
+void PoseGraph::ReserveParameters(size_t num_doubles) {
+  THROW_CHECK_MSG(poses_.empty() && storage_.empty() && overflow_.empty(),
+                  "PoseGraph::ReserveParameters after the first block");
+  storage_.reserve(num_doubles);
+}
+
+double* PoseGraph::ParameterStorage(int size) {
+  THROW_CHECK_GT(size, 0);
+  if (storage_.size() + static_cast<size_t>(size) <= storage_.capacity()) {
+    storage_.resize(storage_.size() + size, 0.0);  // within capacity: no reallocation
+    return storage_.data() + storage_.size() - size;
+  }
+  overflow_.emplace_back(size, 0.0);
+  return overflow_.back().data();
+}
+
 int PoseGraph::AddPose(const SE3& world_from_body) {
   std::vector<double> values(block_size_);
   if (dimension_ == 3) {
@@ -104,9 +120,10 @@ int PoseGraph::AddPose(const SE3& world_from_body) {
   } else {
     ToPlanarBlock(world_from_body, values.data());  // throws before any change
   }
-  poses_.push_back(std::move(values));
+  double* block = ParameterStorage(block_size_);
+  std::copy(values.begin(), values.end(), block);
+  poses_.push_back(block);
   constant_.push_back(false);
-  double* block = poses_.back().data();
   if (dimension_ == 3) {
     problem_->AddParameterBlock(block, block_size_, manifold_.get());
   } else {
@@ -117,13 +134,13 @@ int PoseGraph::AddPose(const SE3& world_from_body) {
 
 SE3 PoseGraph::Pose(int index) const {
   CheckIndex(index);
-  const double* block = poses_[index].data();
+  const double* block = poses_[index];
   return dimension_ == 3 ? PoseManifold::FromBlock(block) : FromPlanarBlock(block);
 }
 
 void PoseGraph::SetPose(int index, const SE3& world_from_body) {
   CheckIndex(index);
-  double* block = poses_[index].data();
+  double* block = poses_[index];
   if (dimension_ == 3) {
     PoseManifold::ToBlock(world_from_body, block);
   } else {
@@ -133,13 +150,13 @@ void PoseGraph::SetPose(int index, const SE3& world_from_body) {
 
 double* PoseGraph::PoseBlock(int index) {
   CheckIndex(index);
-  return poses_[index].data();
+  return poses_[index];
 }
 
 void PoseGraph::SetPoseConstant(int index) {
   CheckIndex(index);
   constant_[index] = true;
-  problem_->SetParameterBlockConstant(poses_[index].data());
+  problem_->SetParameterBlockConstant(poses_[index]);
 }
 
 bool PoseGraph::IsPoseConstant(int index) const {
@@ -161,7 +178,7 @@ PoseGraph::FactorId PoseGraph::AddChordalFactor(
     ToPlanarBlock(i_from_j, z);
     cost = ChordalFactor2::Create(z[0], z[1], z[2], kappa, tau);
   }
-  return problem_->AddResidualBlock(cost, nullptr, poses_[i].data(), poses_[j].data());
+  return problem_->AddResidualBlock(cost, nullptr, poses_[i], poses_[j]);
 }
 
 PoseGraph::FactorId PoseGraph::AddRelativePoseFactor(
@@ -175,10 +192,8 @@ PoseGraph::FactorId PoseGraph::AddRelativePoseFactor(
                   "PoseGraph: information matrix is not positive definite");
   // information = L L^T (L lower) = (L^T)^T (L^T): the residual is L^T e.
   const Mat6 sqrt_information = llt.matrixL().transpose();
-  return problem_->AddResidualBlock(RelativePoseFactor::Create(i_from_j, sqrt_information),
-                                    MakeLoss(loss),
-                                    poses_[i].data(),
-                                    poses_[j].data());
+  return problem_->AddResidualBlock(
+      RelativePoseFactor::Create(i_from_j, sqrt_information), MakeLoss(loss), poses_[i], poses_[j]);
 }
 
 double PoseGraph::SquaredResidual(FactorId factor) const {
@@ -253,7 +268,7 @@ std::vector<MatX> PoseGraph::PoseCovariances(const std::vector<int>& indices) {
   std::vector<std::pair<const double*, const double*>> blocks;
   for (const int index : indices) {
     CheckIndex(index);
-    if (!constant_[index]) blocks.emplace_back(poses_[index].data(), poses_[index].data());
+    if (!constant_[index]) blocks.emplace_back(poses_[index], poses_[index]);
   }
   std::sort(blocks.begin(), blocks.end());
   blocks.erase(std::unique(blocks.begin(), blocks.end()), blocks.end());
@@ -269,7 +284,7 @@ std::vector<MatX> PoseGraph::PoseCovariances(const std::vector<int>& indices) {
       Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> row_major(tangent,
                                                                                        tangent);
       THROW_CHECK(covariance.GetCovarianceBlockInTangentSpace(
-          poses_[index].data(), poses_[index].data(), row_major.data()));
+          poses_[index], poses_[index], row_major.data()));
       block = row_major;
     }
     out.push_back(block);

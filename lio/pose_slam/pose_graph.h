@@ -99,6 +99,19 @@ class PoseGraph {
   // (e.g. velocities and IMU biases); it owns their cost and loss functions.
   ceres::Problem& problem() { return *problem_; }
 
+  // Parameter storage in creation order. Ceres orders parameter blocks by
+  // their addresses (ParameterBlockOrdering's sets, Covariance's sort), so
+  // blocks in separate heap allocations make the order of the floating-point
+  // operations, and the last bits of Solve() and PoseCovariances(), depend on
+  // the allocator's state (run to run, thread count). After
+  // ReserveParameters(n), the next poses and ParameterStorage() blocks, up to n
+  // doubles in all, are consecutive in one buffer: address order = creation
+  // order. Beyond n (or without a reservation) each block is allocated alone.
+  // Call before the first AddPose.
+  void ReserveParameters(size_t num_doubles);
+  // `size` doubles, zero, that live as long as the graph (stable address).
+  double* ParameterStorage(int size);
+
   // ||r||^2 of one factor at the current estimate, without its robust loss
   // (for a factor weighted by its information: the squared Mahalanobis distance).
   double SquaredResidual(FactorId factor) const;
@@ -130,7 +143,9 @@ class PoseGraph {
   int block_size_;
   std::unique_ptr<PoseManifold> manifold_;   // shared by the 3D pose blocks
   std::unique_ptr<ceres::Problem> problem_;  // declared after manifold_: destroyed first
-  std::deque<std::vector<double>> poses_;    // pose blocks (stable addresses)
+  std::vector<double*> poses_;               // pose blocks
+  std::vector<double> storage_;              // reserved blocks, creation order
+  std::deque<std::vector<double>> overflow_;  // blocks beyond the reservation
   std::vector<bool> constant_;
 };
 

@@ -9,10 +9,9 @@
 
 #include <Eigen/Cholesky>
 #include <algorithm>
-#include <array>
 #include <chrono>
 #include <cmath>
-#include <deque>
+#include <filesystem>
 #include <fstream>
 #include <memory>
 #include <numeric>
@@ -24,6 +23,7 @@
 #include "core/io/cloud_io.h"
 #include "core/io/trajectory_io.h"
 #include "core/option_check.h"
+#include "core/work_list.h"
 #include "icp/icp.h"
 #include "icp/nearest_neighbors.h"
 
@@ -53,6 +53,25 @@ struct PairResult {
   SE3 i_from_j;                    // IMU frames
   Mat6 covariance = Mat6::Zero();  // right perturbation of i_from_j (IMU frames)
 };
+
+// A pair's result as bytes (core/work_list.h), bit for bit.
+std::string EncodePairResult(const PairResult& r) {
+  ByteWriter writer;
+  writer.Put<int32_t>(static_cast<int32_t>(r.outcome));
+  writer.PutSe3(r.i_from_j);
+  writer.PutMatrix(r.covariance);
+  return writer.Take();
+}
+
+PairResult DecodePairResult(const std::string& bytes) {
+  ByteReader reader(bytes);
+  PairResult r;
+  r.outcome = static_cast<PairResult::Outcome>(reader.Get<int32_t>());
+  r.i_from_j = reader.GetSe3();
+  r.covariance = reader.GetMatrix<Mat6>();
+  THROW_CHECK(reader.AtEnd());
+  return r;
+}
 
 // lio's velocity at trajectory sample k by central differences (m/s).
 Vec3 LioVelocity(const Trajectory& trajectory, int k) {
@@ -391,66 +410,110 @@ PoseSlamResult RunPoseSlamInArena(const PoseSlamInput& input,
   }
   result.timings.candidates = SecondsSince(start);
 
-  // Clouds of the keyframes that take part in a pair, in the LiDAR frame.
-  Stage(callbacks, fmt::format("loading {} keyframe clouds", num_keyframes));
-  start = std::chrono::steady_clock::now();
-  std::vector<KeyframeClouds> clouds(num_keyframes);
-  std::vector<char> needed(num_keyframes, 0);
-  for (const auto& [i, j] : pairs) needed[i] = needed[j] = 1;
+  // Clouds of the keyframes that take part in a pair (of `subset`), in the
+  // LiDAR frame; then the Bayesian ICP per pair, in blocks of target keyframes
+  // (bounded memory: a block's KD-trees only). A pair's result depends on the
+  // pair only (its seed on its keyframe indices): not on the threads, the
+  // subset or the process.
   const SE3 lidar_from_imu = input.imu_from_lidar.Inverse();
-  tbb::parallel_for(0, num_keyframes, [&](int k) {
-    if (!needed[k]) return;
-    PointSet points = FinitePointsOf(ReadPcd(keyframes[k].cloud_path));
-    for (Eigen::Vector3f& p : points) {
-      p = (lidar_from_imu * p.cast<double>()).cast<float>();
-    }
-    clouds[k].source = VoxelDownsamplePoints(points, options.source_voxel_size);
-    clouds[k].target = VoxelDownsamplePoints(points, options.target_voxel_size);
-  });
-  result.timings.load_clouds = SecondsSince(start);
-
-  // Bayesian ICP per pair, in blocks of target keyframes (bounded memory: a
-  // block's KD-trees only). Results by pair index: independent of the threads.
-  Stage(callbacks, fmt::format("Bayesian ICP on {} pairs", pairs.size()));
-  start = std::chrono::steady_clock::now();
-  if (callbacks.on_icp_start) callbacks.on_icp_start(static_cast<int64_t>(pairs.size()));
-  std::vector<PairResult> pair_results(pairs.size());
   NormalOptions normal_options;
   normal_options.num_neighbors = options.bayesian.normal_neighbors;
-  constexpr int kTargetBlock = 64;
-  for (size_t begin = 0; begin < pairs.size();) {
-    const int block_first = pairs[begin].first;
-    size_t end = begin;
-    while (end < pairs.size() && pairs[end].first < block_first + kTargetBlock) ++end;
-    std::vector<int> targets;
-    for (size_t p = begin; p < end; ++p) {
-      if (targets.empty() || targets.back() != pairs[p].first) targets.push_back(pairs[p].first);
+  auto register_pairs = [&](const std::vector<size_t>& subset) {
+    auto stage_start = std::chrono::steady_clock::now();
+    std::vector<KeyframeClouds> clouds(num_keyframes);
+    std::vector<char> needed(num_keyframes, 0);
+    for (size_t p : subset) needed[pairs[p].first] = needed[pairs[p].second] = 1;
+    Stage(callbacks,
+          fmt::format("loading {} keyframe clouds",
+                      std::count(needed.begin(), needed.end(), char(1))));
+    tbb::parallel_for(0, num_keyframes, [&](int k) {
+      if (!needed[k]) return;
+      PointSet points = FinitePointsOf(ReadPcd(keyframes[k].cloud_path));
+      for (Eigen::Vector3f& p : points) {
+        p = (lidar_from_imu * p.cast<double>()).cast<float>();
+      }
+      clouds[k].source = VoxelDownsamplePoints(points, options.source_voxel_size);
+      clouds[k].target = VoxelDownsamplePoints(points, options.target_voxel_size);
+    });
+    result.timings.load_clouds += SecondsSince(stage_start);
+
+    Stage(callbacks, fmt::format("Bayesian ICP on {} pairs", subset.size()));
+    stage_start = std::chrono::steady_clock::now();
+    if (callbacks.on_icp_start) callbacks.on_icp_start(static_cast<int64_t>(subset.size()));
+    std::vector<PairResult> subset_results(subset.size());
+    constexpr int kTargetBlock = 64;
+    for (size_t begin = 0; begin < subset.size();) {
+      const int block_first = pairs[subset[begin]].first;
+      size_t end = begin;
+      while (end < subset.size() && pairs[subset[end]].first < block_first + kTargetBlock) ++end;
+      std::vector<int> targets;
+      for (size_t q = begin; q < end; ++q) {
+        const int i = pairs[subset[q]].first;
+        if (targets.empty() || targets.back() != i) targets.push_back(i);
+      }
+      std::vector<std::unique_ptr<KdTreeTarget>> trees(targets.size());
+      tbb::parallel_for(0, static_cast<int>(targets.size()), [&](int t) {
+        trees[t] = std::make_unique<KdTreeTarget>(clouds[targets[t]].target, normal_options);
+      });
+      tbb::parallel_for(begin, end, [&](size_t q) {
+        const auto [i, j] = pairs[subset[q]];
+        const int t =
+            static_cast<int>(std::lower_bound(targets.begin(), targets.end(), i) - targets.begin());
+        const SE3 lio_i_from_j =
+            keyframes[i].world_from_imu.Inverse() * keyframes[j].world_from_imu;
+        const uint64_t seed = options.bayesian.sgld.seed * 1000003ull +
+                              static_cast<uint64_t>(i) * 100003ull + static_cast<uint64_t>(j);
+        subset_results[q] =
+            RegisterPair(clouds[j], *trees[t], lio_i_from_j, input.imu_from_lidar, options, seed);
+        if (callbacks.on_icp_pair) callbacks.on_icp_pair();
+      });
+      begin = end;
     }
-    std::vector<std::unique_ptr<KdTreeTarget>> trees(targets.size());
-    tbb::parallel_for(0, static_cast<int>(targets.size()), [&](int t) {
-      trees[t] = std::make_unique<KdTreeTarget>(clouds[targets[t]].target, normal_options);
+    result.timings.icp += SecondsSince(stage_start);
+    return subset_results;
+  };
+  std::vector<PairResult> pair_results;
+  if (!callbacks.pair_runner) {
+    std::vector<size_t> all(pairs.size());
+    std::iota(all.begin(), all.end(), size_t(0));
+    pair_results = register_pairs(all);
+  } else {
+    // Cost of a pair: the bytes of its two keyframe clouds (points of a binary PCD).
+    std::vector<double> cloud_bytes(num_keyframes, 0.0);
+    for (int k = 0; k < num_keyframes; ++k) {
+      std::error_code error;
+      const auto bytes = std::filesystem::file_size(keyframes[k].cloud_path, error);
+      cloud_bytes[k] = error ? 0.0 : static_cast<double>(bytes);
+    }
+    std::vector<double> costs;
+    for (const auto& [i, j] : pairs) costs.push_back(cloud_bytes[i] + cloud_bytes[j]);
+    // timings.icp: the wall time of the whole split (this process's share, then
+    // waiting for the others' results) less this process's cloud loading.
+    const auto runner_start = std::chrono::steady_clock::now();
+    const auto encoded = callbacks.pair_runner(costs, [&](const std::vector<size_t>& subset) {
+      std::vector<std::string> out;
+      for (const PairResult& r : register_pairs(subset)) out.push_back(EncodePairResult(r));
+      return out;
     });
-    tbb::parallel_for(begin, end, [&](size_t p) {
-      const auto [i, j] = pairs[p];
-      const int t =
-          static_cast<int>(std::lower_bound(targets.begin(), targets.end(), i) - targets.begin());
-      const SE3 lio_i_from_j = keyframes[i].world_from_imu.Inverse() * keyframes[j].world_from_imu;
-      const uint64_t seed = options.bayesian.sgld.seed * 1000003ull +
-                            static_cast<uint64_t>(i) * 100003ull + static_cast<uint64_t>(j);
-      pair_results[p] =
-          RegisterPair(clouds[j], *trees[t], lio_i_from_j, input.imu_from_lidar, options, seed);
-      if (callbacks.on_icp_pair) callbacks.on_icp_pair();
-    });
-    begin = end;
+    result.timings.icp = SecondsSince(runner_start) - result.timings.load_clouds;
+    if (!encoded) {
+      result.share_only = true;
+      return result;
+    }
+    THROW_CHECK_EQ(encoded->size(), pairs.size());
+    for (const std::string& bytes : *encoded) pair_results.push_back(DecodePairResult(bytes));
   }
-  clouds.clear();
   result.pairs.registered = static_cast<int>(pairs.size());
-  result.timings.icp = SecondsSince(start);
 
   // The graph.
   Stage(callbacks, "building the pose graph");
   start = std::chrono::steady_clock::now();
   PoseGraph graph;
+  // Every parameter block in one buffer, in creation order (PoseGraph::
+  // ReserveParameters): poses, gravity direction, velocities, biases (at most
+  // one per rest plus the first).
+  graph.ReserveParameters(static_cast<size_t>(num_nodes) * (PoseManifold::kAmbientSize + 3) + 3 +
+                          6 * (result.stationary_periods.size() + 1));
   for (const Node& n : nodes) graph.AddPose(n.lio_pose);
   ceres::Problem& problem = graph.problem();
   // Odometry.
@@ -497,26 +560,27 @@ PoseSlamResult RunPoseSlamInArena(const PoseSlamInput& input,
     icp_factor_pair.push_back(p);
   }
   // IMU: velocities, piecewise-constant biases, preintegration factors.
-  std::deque<std::array<double, 3>> velocities;
-  std::deque<std::array<double, 6>> biases;
-  std::array<double, 3> gravity_direction = {0.0, 0.0, -1.0};
+  std::vector<double*> velocities, biases;  // 3 and 6 doubles in the graph's storage
+  double* gravity_direction = graph.ParameterStorage(3);
+  gravity_direction[2] = -1.0;
   ceres::SphereManifold<3> sphere;
   if (options.use_imu) {
-    problem.AddParameterBlock(gravity_direction.data(), 3, &sphere);
+    problem.AddParameterBlock(gravity_direction, 3, &sphere);
     for (const Node& n : nodes) {
       const int s = lio.Nearest(n.t_ns, 0);
       THROW_CHECK_GE(s, 0);
       const Vec3 v = LioVelocity(lio, s);
-      velocities.push_back({v.x(), v.y(), v.z()});
-      problem.AddParameterBlock(velocities.back().data(), 3);
+      velocities.push_back(graph.ParameterStorage(3));
+      Eigen::Map<Vec3>(velocities.back()) = v;
+      problem.AddParameterBlock(velocities.back(), 3);
     }
     const PiecewiseBias piecewise = options.piecewise_bias
                                         ? AssignPiecewiseBias(node_times, result.stationary_periods)
                                         : AssignPiecewiseBias(node_times, {});
     result.num_biases = piecewise.num_biases();
     for (int b = 0; b < piecewise.num_biases(); ++b) {
-      biases.push_back({0, 0, 0, 0, 0, 0});
-      problem.AddParameterBlock(biases.back().data(), 6);
+      biases.push_back(graph.ParameterStorage(6));
+      problem.AddParameterBlock(biases.back(), 6);
     }
     std::vector<std::unique_ptr<Preintegration>> preintegrations(num_nodes - 1);
     std::vector<std::string> errors(num_nodes - 1);
@@ -549,11 +613,11 @@ PoseSlamResult RunPoseSlamInArena(const PoseSlamInput& input,
           ImuGravityFactor::Create(*preintegrations[n], options.gravity, extra),
           nullptr,
           graph.PoseBlock(n),
-          velocities[n].data(),
+          velocities[n],
           graph.PoseBlock(n + 1),
-          velocities[n + 1].data(),
-          biases[piecewise.interval_bias[n]].data(),
-          gravity_direction.data());
+          velocities[n + 1],
+          biases[piecewise.interval_bias[n]],
+          gravity_direction);
       ++result.num_imu_factors;
     }
     for (int b = 0; b + 1 < piecewise.num_biases(); ++b) {
@@ -561,8 +625,8 @@ PoseSlamResult RunPoseSlamInArena(const PoseSlamInput& input,
           BiasRandomWalkFactor::Create(input.imu_noise,
                                        BiasRandomWalkSeconds(piecewise, node_times, b)),
           nullptr,
-          biases[b].data(),
-          biases[b + 1].data());
+          biases[b],
+          biases[b + 1]);
       ++result.num_bias_random_walk_factors;
     }
     // The first bias around zero (datasheet offsets): conditions a bias that a
@@ -573,7 +637,7 @@ PoseSlamResult RunPoseSlamInArena(const PoseSlamInput& input,
     problem.AddResidualBlock(
         new ceres::NormalPrior(prior_inverse_sigma.asDiagonal().toDenseMatrix(), Vec6::Zero()),
         nullptr,
-        biases.front().data());
+        biases.front());
   }
   // Rests: zero velocity at each node inside one, identity between consecutive
   // nodes of the same one.
@@ -583,7 +647,7 @@ PoseSlamResult RunPoseSlamInArena(const PoseSlamInput& input,
       if (period < 0) continue;
       if (options.use_imu) {
         problem.AddResidualBlock(
-            ZeroVelocityFactor::Create(options.zero_velocity), nullptr, velocities[n].data());
+            ZeroVelocityFactor::Create(options.zero_velocity), nullptr, velocities[n]);
         ++result.num_zero_velocity_factors;
       }
       if (n + 1 < num_nodes &&
@@ -653,8 +717,8 @@ PoseSlamResult RunPoseSlamInArena(const PoseSlamInput& input,
     result.keyframe_poses.push_back(optimised_node_poses[node_of_keyframe[k]]);
     result.keyframe_covariances.push_back(covariances[k]);
   }
-  for (const auto& b : biases) result.biases.push_back(Eigen::Map<const Vec6>(b.data()));
-  result.gravity_direction = Eigen::Map<const Vec3>(gravity_direction.data());
+  for (const double* b : biases) result.biases.push_back(Eigen::Map<const Vec6>(b));
+  result.gravity_direction = Eigen::Map<const Vec3>(gravity_direction);
   result.trajectory = CorrectTrajectory(lio, node_times, lio_node_poses, optimised_node_poses);
   return result;
 }

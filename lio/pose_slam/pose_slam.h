@@ -42,6 +42,7 @@
 #include "core/sensor_data.h"
 #include "core/time.h"
 #include "core/trajectory.h"
+#include "core/work_list.h"
 #include "icp/bayesian_icp.h"
 #include "lio/pose_slam/imu_factors.h"
 #include "lio/pose_slam/imu_preintegration.h"
@@ -179,12 +180,19 @@ struct PoseSlamResult {
   PoseSlamTimings timings;
   std::vector<Vec6> biases;                 // per bias variable [b_g; b_a]
   Vec3 gravity_direction = Vec3(0, 0, -1);  // estimated, unit, lio's world frame
+  // Only this process's share of the pairs was registered and sent to the
+  // process that goes on (PoseSlamCallbacks::pair_runner); nothing else is set.
+  bool share_only = false;
 };
 
 struct PoseSlamCallbacks {
   std::function<void(const std::string&)> on_stage;  // a stage begins
   std::function<void(int64_t)> on_icp_start;         // number of pairs to register
   std::function<void()> on_icp_pair;                 // one pair done (any thread)
+  // Runs the Bayesian ICP pairs (core/work_list.h), e.g. split across MPI ranks
+  // (core/mpi); empty: every pair here. Where it returns std::nullopt (a rank
+  // other than 0) RunPoseSlam returns right after the pairs, with share_only.
+  WorkListRunner pair_runner;
 };
 
 // Runs the whole back end. Throws InputError for an unreadable keyframe cloud

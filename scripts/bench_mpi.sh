@@ -1,0 +1,127 @@
+#!/usr/bin/env bash
+# MPI scale-out of `lisfm pose_slam` (Bayesian ICP pairs) and `lisfm
+# database_importer` (co-visibility) on one long simulated recording: one process
+# with 2 threads (the normal run), one process with 1 thread, and mpirun with 1, 2
+# and 4 ranks (4 oversubscribed on this 2-core machine) of 1 thread each. Prints a
+# markdown table for docs/BENCHMARKS.md (also WORK_DIR/bench_mpi.md): wall time of
+# the distributed stage (constraints: cloud loading + ICP pairs incl. waiting for
+# the other ranks; co-visibility), rank 0's serial part (pose graph build, solves,
+# covariances, map), parallel efficiency against 1 rank x 1 thread, and whether
+# every output is byte-identical to the normal run.
+#
+#   scripts/bench_mpi.sh [--scene NAME] [--duration S] [--camera_rate HZ] [--work_dir DIR]
+#                        [--keep]
+#
+# Threads: pose_slam --num_threads 1 --Solver.num_threads 1 (TBB arena of the ICP
+# pairs and preintegration; Ceres), database_importer --DatabaseImporter.num_threads 1
+# (TBB global_control). The work folder is removed at the end unless --keep.
+# Runs as root only with OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1
+# (set here when the user is root).
+set -euo pipefail
+source "$(dirname "${BASH_SOURCE[0]}")/common.sh"
+
+SCENE=office
+DURATION=300
+RATE=0.5
+WORK_DIR=/tmp/lisfm_bench_mpi
+KEEP=0
+usage() { sed -n '2,20p' "${BASH_SOURCE[0]}" | sed 's/^# \{0,1\}//'; }
+while [ $# -gt 0 ]; do
+  case "$1" in
+    --scene) SCENE=$2; shift 2 ;;
+    --duration) DURATION=$2; shift 2 ;;
+    --camera_rate) RATE=$2; shift 2 ;;
+    --work_dir) WORK_DIR=$2; shift 2 ;;
+    --keep) KEEP=1; shift ;;
+    -h|--help) usage; exit 0 ;;
+    *) echo "error: unknown argument '$1'" >&2; usage >&2; exit 2 ;;
+  esac
+done
+command -v mpirun >/dev/null || { echo "error: mpirun not found (apt-get install openmpi-bin)" >&2; exit 1; }
+[ -x "$LISFM" ] || { echo "error: $LISFM not built (cmake --build build --target lisfm)" >&2; exit 1; }
+if [ "$(id -u)" = 0 ]; then
+  export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1
+fi
+
+mkdir -p "$WORK_DIR"
+SEQ="$WORK_DIR/seq"
+LIO="$WORK_DIR/lio"
+load_before=$(cut -d' ' -f1-3 /proc/loadavg)
+if [ ! -f "$SEQ/rig.yaml" ]; then
+  "$LISFM" simulate --scene "$SCENE" --duration "$DURATION" --camera_rate "$RATE" --quiet 1 \
+    --output_path "$SEQ"
+fi
+[ -f "$LIO/trajectory.txt" ] || "$LISFM" lio --quiet 1 --input_path "$SEQ" --output_path "$LIO"
+
+now() { date +%s.%N; }
+# run NAME RANKS THREADS: pose_slam then database_importer; RANKS 0 = no mpirun.
+run() {
+  local name=$1 ranks=$2 threads=$3 launcher=() ps_threads=() db_threads=()
+  # Unbound ranks: bound to one core, SuiteSparse's OpenMP runs one thread and
+  # pose_slam's covariances change in their last digits.
+  [ "$ranks" -gt 0 ] && launcher=(mpirun --oversubscribe --bind-to none -np "$ranks")
+  if [ "$threads" -gt 0 ]; then
+    ps_threads=(--num_threads "$threads" --Solver.num_threads "$threads")
+    db_threads=(--DatabaseImporter.num_threads "$threads")
+  fi
+  local t0 t1 t2
+  t0=$(now)
+  "${launcher[@]}" "$LISFM" pose_slam --quiet 1 --input_path "$SEQ" --lio_path "$LIO" \
+    --output_path "$WORK_DIR/ps_$name" "${ps_threads[@]}"
+  t1=$(now)
+  "${launcher[@]}" "$LISFM" database_importer --quiet 1 --input_path "$SEQ" \
+    --pose_slam_path "$WORK_DIR/ps_1x2" --lio_path "$LIO" --output_path "$WORK_DIR/db_$name" \
+    "${db_threads[@]}"
+  t2=$(now)
+  echo "$name $ranks $threads $t0 $t1 $t2" >>"$WORK_DIR/times.txt"
+}
+rm -rf "$WORK_DIR"/ps_* "$WORK_DIR"/db_* "$WORK_DIR/times.txt"
+run 1x2 0 0   # the normal run: one process, TBB on both cores
+run 1x1 0 1
+run mpi1x1 1 1
+run mpi2x1 2 1
+run mpi4x1 4 1
+load_after=$(cut -d' ' -f1-3 /proc/loadavg)
+
+python3 - "$WORK_DIR" "$load_before" "$load_after" "$SCENE" "$DURATION" "$RATE" <<'PY' | tee "$WORK_DIR/bench_mpi.md"
+import json, sys, filecmp, os
+work, load_before, load_after, scene, duration, rate = sys.argv[1:]
+runs = []
+for line in open(os.path.join(work, "times.txt")):
+    name, ranks, threads, t0, t1, t2 = line.split()
+    ps = json.load(open(os.path.join(work, f"ps_{name}", "pose_slam_summary.json")))
+    db = json.load(open(os.path.join(work, f"db_{name}", "importer_summary.json")))
+    s = ps["seconds"]
+    runs.append(dict(name=name, ranks=int(ranks), threads=int(threads),
+                     ps_wall=float(t1) - float(t0), db_wall=float(t2) - float(t1),
+                     constraints=s["load_clouds"] + s["icp"],
+                     serial=s["build"] + s["solve"] + s["second_solve"] + s["covariances"] + s["map"],
+                     covis=db["seconds"]["covisibility"], pairs=ps["pairs"]["registered"]))
+ref = "ps_1x2", "db_1x2"
+ps_files = ["trajectory.txt", "keyframes.txt", "constraints.txt", "keyframe_covariances.txt", "map.pcd"]
+db_files = ["database.db", "image_list.txt", "pairs.txt", "rig.yaml", "constraints.txt", "covisibility.csv"]
+def same(name):
+    ok = all(filecmp.cmp(os.path.join(work, ref[0], f), os.path.join(work, f"ps_{name}", f), shallow=False) for f in ps_files)
+    return ok and all(filecmp.cmp(os.path.join(work, ref[1], f), os.path.join(work, f"db_{name}", f), shallow=False) for f in db_files)
+base = next(r for r in runs if r["name"] == "1x1")
+print(f"{scene}, {duration} s, {rate} Hz rig frames; {runs[0]['pairs']} ICP pairs; "
+      f"load average before {load_before}, after {load_after}\n")
+print("| run | ranks x threads | pose_slam wall s | constraints s | rank 0 serial s | "
+      "importer wall s | co-visibility s | efficiency constraints | efficiency co-visibility | "
+      "identical |")
+print("|---|---|---|---|---|---|---|---|---|---|")
+for r in runs:
+    # Efficiency over processes x threads (4 x 1 oversubscribes the 2 cores: at most 50 %).
+    cores = max(1, r["ranks"]) * (r["threads"] if r["threads"] > 0 else 2)
+    eff_c = base["constraints"] / (cores * r["constraints"])
+    eff_v = base["covis"] / (cores * r["covis"])
+    label = "1 x 2 (TBB)" if r["name"] == "1x2" else f"{max(1, r['ranks'])} x 1" + \
+        (" (no mpirun)" if r["ranks"] == 0 else "")
+    print(f"| {r['name']} | {label} | {r['ps_wall']:.1f} | {r['constraints']:.1f} | "
+          f"{r['serial']:.1f} | {r['db_wall']:.1f} | {r['covis']:.1f} | {100 * eff_c:.0f} % | "
+          f"{100 * eff_v:.0f} % | {'yes' if same(r['name']) else 'NO'} |")
+serial_share = base["serial"] / (base["constraints"] + base["serial"])
+print(f"\nrank 0's serial part of pose_slam (1 x 1): {base['serial']:.1f} s = "
+      f"{100 * serial_share:.1f} % of constraints + serial.")
+PY
+[ "$KEEP" = 1 ] || rm -rf "$WORK_DIR"
