@@ -14,7 +14,8 @@ set -euo pipefail
 source "$(dirname "${BASH_SOURCE[0]}")/common.sh"
 
 # The sanitizer subset of CI: every reader of untrusted input (core/io, colmap_ext/io,
-# importers), the option parser, and the CLI end to end on bad input.
+# importers), the option parser, the CLI end to end on bad input, and the fuzz corpus
+# replayed through every fuzz target's entry point.
 LISFM_SANITIZE_QUICK=(
   core/options_test core/file_utils_test
   core/io/cloud_io_test core/io/g2o_io_test core/io/lidar_constraints_io_test
@@ -23,6 +24,7 @@ LISFM_SANITIZE_QUICK=(
   colmap_ext/io/model_io_test colmap_ext/io/database_test colmap_ext/io/rig_config_test
   importers/bag_test importers/bag_message_test importers/point_cloud2_test importers/kitti_test
   tests/e2e/cli_test tests/e2e/option_ranges_test tests/e2e/bad_input_test
+  fuzz/replay_corpus
 )
 
 sanitize=0
@@ -64,7 +66,10 @@ if [ "$quick" = 1 ]; then
   targets=(lisfm)
   regex=""
   for t in "${LISFM_SANITIZE_QUICK[@]}"; do
-    targets+=("$(echo "$t" | tr / _)")
+    case "$t" in
+      fuzz/*) targets+=("tests_$(echo "$t" | tr / _)") ;;  # tests/fuzz/ names its ctest fuzz/
+      *) targets+=("$(echo "$t" | tr / _)") ;;
+    esac
     regex+="${regex:+|}^$t\$"
   done
   lisfm_build "${sanitize_args[@]}" -- "${targets[@]}"
