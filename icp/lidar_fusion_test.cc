@@ -16,6 +16,24 @@ constexpr double kDeg = M_PI / 180.0;
 // An XT-32-like image: 2000 columns, 32 rows from +15 to -16 deg.
 SphericalProjection Xt32() { return SphericalProjection(2000, 32, 15 * kDeg, 1 * kDeg); }
 
+TEST(SphericalProjection, FastAtan2IsWithin1e5Rad) {
+  std::mt19937 rng(1);
+  std::uniform_real_distribution<float> c(-50.f, 50.f);
+  double worst = 0;
+  for (int k = 0; k < 200000; ++k) {
+    const float y = c(rng), x = c(rng);
+    worst = std::max(worst, std::abs(double{FastAtan2(y, x)} - std::atan2(double{y}, double{x})));
+  }
+  for (float a = -3.14f; a < 3.14f; a += 1e-3f) {
+    const float y = std::sin(a), x = std::cos(a);
+    worst = std::max(worst, std::abs(double{FastAtan2(y, x)} - std::atan2(double{y}, double{x})));
+  }
+  EXPECT_LT(worst, 1e-5);
+  EXPECT_EQ(FastAtan2(0.f, 0.f), 0.f);
+  EXPECT_NEAR(FastAtan2(0.f, -1.f), M_PI, 1e-6);
+  EXPECT_NEAR(FastAtan2(-1.f, 0.f), -M_PI / 2, 1e-6);
+}
+
 // Every pixel's ray scaled to a range projects back to the pixel and the range.
 TEST(SphericalProjection, PixelRayRoundTrip) {
   const SphericalProjection p = Xt32();

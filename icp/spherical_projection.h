@@ -9,15 +9,36 @@
 //   is u = 0). Row v covers elevations within de / 2 of e_v = elevation_top - v de
 //   (row 0 highest). The ray of pixel (u, v) is the unit vector at a_u = pi -
 //   (u + 1/2) da and e_v.
+// Project computes the angles with FastAtan2 (a polynomial, within 1e-5 rad of
+// atan2: a 300th of the finest default step, 0.18 deg), the only per-point cost of
+// rendering a map into the image.
 // A pixel's "depth" is the range along its unit ray, so that the vertex of a pixel
 // at depth r is r * Ray(u, v) (compare the pinhole z along (x/z, y/z, 1)).
 #pragma once
 
 #include <Eigen/Core>
+#include <algorithm>
 #include <cmath>
 #include <vector>
 
 namespace lisfm {
+
+// atan2(y, x) in [-pi, pi] within 1e-5 rad (an odd minimax polynomial of degree 11
+// for atan on [0, 1], then octant symmetries); 0 for x = y = 0.
+inline float FastAtan2(float y, float x) {
+  const float ax = std::abs(x), ay = std::abs(y);
+  const float hi = std::max(ax, ay);
+  if (!(hi > 0.f)) return 0.f;
+  const float a = std::min(ax, ay) / hi;
+  const float s = a * a;
+  float r =
+      a * (0.99997726f +
+           s * (-0.33262347f +
+                s * (0.19354346f + s * (-0.11643287f + s * (0.05265332f + s * -0.01172120f)))));
+  if (ay > ax) r = 1.57079637f - r;
+  if (x < 0.f) r = 3.14159274f - r;
+  return y < 0.f ? -r : r;
+}
 
 class SphericalProjection {
  public:
@@ -40,7 +61,7 @@ class SphericalProjection {
     const float r2 = rxy2 + p.z() * p.z();
     if (!(r2 > 0.f)) return false;
     const float y =
-        (elevation_top_f_ - std::atan2(p.z(), std::sqrt(rxy2))) * inv_elevation_step_f_ + 0.5f;
+        (elevation_top_f_ - FastAtan2(p.z(), std::sqrt(rxy2))) * inv_elevation_step_f_ + 0.5f;
     if (!(y >= 0.f && y < static_cast<float>(height_))) return false;
     *u = Column(p);
     *v = static_cast<int>(y);
@@ -50,7 +71,7 @@ class SphericalProjection {
 
   // The column of p (p_x, p_y not both 0).
   int Column(const Eigen::Vector3f& p) const {
-    const int col = static_cast<int>((kPiF - std::atan2(p.y(), p.x())) * inv_azimuth_step_f_);
+    const int col = static_cast<int>((kPiF - FastAtan2(p.y(), p.x())) * inv_azimuth_step_f_);
     return col >= width_ ? col - width_ : (col < 0 ? col + width_ : col);
   }
 
