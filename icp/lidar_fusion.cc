@@ -150,6 +150,12 @@ size_t LidarFusion::BuildRangeImage(const PointCloud& scan,
   const float jump = static_cast<float>(options_.max_range_jump);
   const float min_cos = static_cast<float>(std::cos(options_.max_incidence_deg * kDegToRad));
   const float scale = layout_.intensity_full_scale > 0 ? 255.f / layout_.intensity_full_scale : 0.f;
+  // Row neighbours as many columns away as one row is high (XT-32: 6 x 0.18 deg for 1
+  // deg), so that both differences span similar angles.
+  const int column_step =
+      static_cast<int>(std::clamp(std::lround(proj.elevation_step_rad() / proj.azimuth_step_rad()),
+                                  1L,
+                                  static_cast<long>(w / 4 + 1)));
   colors->resize(n);
   tbb::parallel_for(0, h, [&](int v) {
     for (int u = 0; u < w; ++u) {
@@ -181,8 +187,8 @@ size_t LidarFusion::BuildRangeImage(const PointCloud& scan,
         }
         return true;
       };
-      const size_t left = static_cast<size_t>(v) * w + proj.WrapColumn(u - 1);
-      const size_t right = static_cast<size_t>(v) * w + proj.WrapColumn(u + 1);
+      const size_t left = static_cast<size_t>(v) * w + proj.WrapColumn(u - column_step);
+      const size_t right = static_cast<size_t>(v) * w + proj.WrapColumn(u + column_step);
       const size_t up = v > 0 ? i - w : n, down = v + 1 < h ? i + w : n;
       Eigen::Vector3f du, dv;
       if (!difference(left, right, &du) || !difference(up, down, &dv)) continue;

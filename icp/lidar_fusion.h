@@ -10,7 +10,9 @@
 // ring's row (LidarImageLayout::row_of_ring; by its elevation for a scan without
 // rings); of several points in one pixel the nearest is kept. A pixel's normal is
 // n = t_u x t_v, oriented towards the sensor, from the differences to its
-// neighbours along the row (columns u +- 1, wrapping) and the column (rows v +- 1):
+// neighbours along the row (columns u +- k, wrapping, k = round(de / da) >= 1: as
+// many columns as one row spans, so that both baselines span similar angles and the
+// range noise tilts the normal alike along both) and the column (rows v +- 1):
 // the central difference when both neighbours are valid and within
 // max_range_jump * r of the pixel's range r, else the one-sided difference to the
 // one that is; a pixel with neither along a direction has no normal. Pixels seen

@@ -1,6 +1,7 @@
 #include "icp/spherical_projection.h"
 
 #include <cmath>
+#include <limits>
 
 #include "core/errors.h"
 
@@ -19,6 +20,11 @@ SphericalProjection::SphericalProjection(int width,
   elevation_top_f_ = static_cast<float>(elevation_top_);
   inv_elevation_step_f_ = static_cast<float>(1.0 / elevation_step_);
   inv_azimuth_step_f_ = static_cast<float>(1.0 / azimuth_step_);
+  const double above = elevation_top_ + 0.5 * elevation_step_ + 1e-3;
+  const double below = elevation_top_ - (height - 0.5) * elevation_step_ - 1e-3;
+  const float inf = std::numeric_limits<float>::infinity();
+  tan_above_ = above < 0.5 * M_PI - 1e-6 ? static_cast<float>(std::tan(above)) : inf;
+  tan_below_ = below > -0.5 * M_PI + 1e-6 ? static_cast<float>(std::tan(below)) : -inf;
   cos_azimuth_.resize(width);
   sin_azimuth_.resize(width);
   for (int u = 0; u < width; ++u) {

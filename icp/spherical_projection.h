@@ -60,8 +60,10 @@ class SphericalProjection {
     const float rxy2 = p.x() * p.x() + p.y() * p.y();
     const float r2 = rxy2 + p.z() * p.z();
     if (!(r2 > 0.f)) return false;
-    const float y =
-        (elevation_top_f_ - FastAtan2(p.z(), std::sqrt(rxy2))) * inv_elevation_step_f_ + 0.5f;
+    const float rxy = std::sqrt(rxy2);
+    // Far above or below the rows (a cheap test before the angle; conservative by 1e-3 rad).
+    if (p.z() > tan_above_ * rxy || p.z() < tan_below_ * rxy) return false;
+    const float y = (elevation_top_f_ - FastAtan2(p.z(), rxy)) * inv_elevation_step_f_ + 0.5f;
     if (!(y >= 0.f && y < static_cast<float>(height_))) return false;
     *u = Column(p);
     *v = static_cast<int>(y);
@@ -92,6 +94,8 @@ class SphericalProjection {
   static constexpr float kPiF = 3.14159265358979f;
   int width_ = 0, height_ = 0;
   double azimuth_step_ = 0, elevation_top_ = 0, elevation_step_ = 0;
+  // tan of the elevations 1e-3 rad beyond the top and bottom rows' edges (+-inf past +-90 deg).
+  float tan_above_ = 0, tan_below_ = 0;
   float elevation_top_f_ = 0, inv_elevation_step_f_ = 0, inv_azimuth_step_f_ = 0;
   std::vector<float> cos_azimuth_, sin_azimuth_, cos_elevation_, sin_elevation_;
 };
