@@ -12,6 +12,9 @@
 //                          the fused model's normals (camera frame, RGB = 255 (n + 1) / 2)
 //                          rendered from the first and last camera poses
 //   config.yaml            the effective options
+// --mode lidar (lio's de-skewed keyframes, spherical range images of lidar0, given poses):
+// trajectory.txt holds world_from_imu at the keyframe stamps, the PNGs are
+// normals_{first,last}_keyframe.png (spherical, LiDAR frame); docs/FORMATS.md.
 #include <fmt/format.h>
 #include <tbb/parallel_invoke.h>
 
@@ -416,7 +419,8 @@ int RunLidarFusion(const LidarFusionRun& run, const OptionManager& options) {
 
 int RunFusion(int argc, char** argv) {
   OptionManager options("lisfm fusion",
-                        "dense RGB-D SLAM: projective ICP (frame to model) and surfel fusion");
+                        "dense RGB-D SLAM: projective ICP (frame to model) and surfel fusion; "
+                        "--mode lidar: surfel fusion of lio keyframes with given poses");
   std::string input_path, output_path, mode = "rgbd", lio_path, pose_source = "icp",
                                        trajectory_path, layout = "auto", intrinsics_path;
   double depth_units_per_m = 0;
