@@ -12,6 +12,9 @@
 //                          the fused model's normals (camera frame, RGB = 255 (n + 1) / 2)
 //                          rendered from the first and last camera poses
 //   config.yaml            the effective options
+// --mode lidar (lio's de-skewed keyframes, spherical range images of lidar0, given poses):
+// trajectory.txt holds world_from_imu at the keyframe stamps, the PNGs are
+// normals_{first,last}_keyframe.png (spherical, LiDAR frame); docs/FORMATS.md.
 #include <fmt/format.h>
 #include <tbb/parallel_invoke.h>
 
@@ -32,13 +35,17 @@
 #include "apps/option_sections.h"
 #include "core/errors.h"
 #include "core/file_utils.h"
+#include "core/io/cloud_io.h"
 #include "core/io/rgbd_io.h"
+#include "core/io/rig_io.h"
 #include "core/io/trajectory_io.h"
 #include "core/logging.h"
 #include "core/options.h"
 #include "core/progress.h"
+#include "icp/lidar_fusion.h"
 #include "icp/rgbd_fusion.h"
 #include "icp/surfel_map.h"
+#include "lio/pose_slam/pose_slam.h"
 
 namespace lisfm {
 
@@ -150,11 +157,270 @@ void WriteNormalMapPng(const std::string& path,
   if (!cv::imwrite(path, image)) throw InputError(path, "", "cannot write the PNG image");
 }
 
+// The stable surfels' normals (sensor frame) seen from world_from_sensor in a
+// spherical image with square pixels (the layout's azimuth step, its elevation
+// range), each surfel covering its projected disc (up to 3 pixels); black where
+// there is none.
+void WriteSphericalNormalMapPng(const std::string& path,
+                                const SurfelMap& map,
+                                const SE3& world_from_sensor,
+                                const SphericalProjection& layout) {
+  const double step = layout.azimuth_step_rad();
+  const double top = layout.elevation_top_rad() + 0.5 * layout.elevation_step_rad();
+  const double bottom = top - layout.height() * layout.elevation_step_rad();
+  const int rows = std::max(1, static_cast<int>(std::lround((top - bottom) / step)));
+  const SphericalProjection image_projection(layout.width(), rows, top - 0.5 * step, step);
+  std::vector<uint32_t> index_map;
+  map.RenderIndexMap(
+      world_from_sensor, image_projection, map.options().output_min_confidence, 3, &index_map);
+  const Eigen::Matrix3f sensor_from_world =
+      world_from_sensor.RotationMatrix().transpose().cast<float>();
+  cv::Mat image(rows, layout.width(), CV_8UC3, cv::Scalar(0, 0, 0));
+  for (int v = 0; v < rows; ++v) {
+    for (int u = 0; u < layout.width(); ++u) {
+      const uint32_t s = index_map[static_cast<size_t>(v) * layout.width() + u];
+      if (s == SurfelMap::kNoSurfel) continue;
+      const Eigen::Vector3f n = sensor_from_world * map.surfels()[s].normal;
+      auto to_byte = [](float x) {
+        return static_cast<uint8_t>(std::clamp(std::lround(127.5f * (x + 1.f)), 0L, 255L));
+      };
+      image.at<cv::Vec3b>(v, u) = cv::Vec3b(to_byte(n.z()), to_byte(n.y()), to_byte(n.x()));  // BGR
+    }
+  }
+  if (!cv::imwrite(path, image)) throw InputError(path, "", "cannot write the PNG image");
+}
+
+struct LidarFusionRun {
+  std::string input_path, output_path, lio_path, pose_source, trajectory_path;
+  int max_frames = 0;
+  bool overwrite = false;
+  LidarFusionOptions lidar;
+  SurfelFusionOptions fusion;
+};
+
+// `lisfm fusion --mode lidar`: lio's de-skewed keyframes (IMU frame) fused with
+// world_from_imu poses from lio's keyframes.csv, a TUM trajectory (a pose within
+// 1 ms of each keyframe stamp) or the sequence's groundtruth.txt (interpolated,
+// gaps up to 0.1 s); the sensor is the rig's lidar0.
+int RunLidarFusion(const LidarFusionRun& run, const OptionManager& options) {
+  OutputFolder output(run.output_path, run.overwrite);
+  const auto t_start = std::chrono::steady_clock::now();
+  LogStage("Reading the lio keyframes");
+  if (!DirExists(run.lio_path)) {
+    throw InputError(
+        run.lio_path, "", "--lio_path: not found: expected a `lisfm lio` output folder");
+  }
+  const Rig rig = ReadRigYaml(JoinPaths(run.input_path, "rig.yaml"));
+  const RigLidar* lidar = rig.FindLidar("lidar0");
+  if (lidar == nullptr || lidar->type != LidarType::kSpinning) {
+    throw InputError(JoinPaths(run.input_path, "rig.yaml"),
+                     "lidars",
+                     "--mode lidar: expected a spinning LiDAR lidar0 (its scans become range "
+                     "images), found none");
+  }
+  const SE3 imu_from_lidar = lidar->imu_from_lidar;
+  const SE3 lidar_from_imu = imu_from_lidar.Inverse();
+  const LioOutput lio = ReadLioOutput(run.lio_path);
+  const size_t num_frames =
+      run.max_frames > 0 ? std::min(lio.keyframes.size(), static_cast<size_t>(run.max_frames))
+                         : lio.keyframes.size();
+  // world_from_imu of each keyframe.
+  std::vector<SE3> poses(num_frames);
+  if (run.pose_source == "lio") {
+    for (size_t i = 0; i < num_frames; ++i) poses[i] = lio.keyframes[i].world_from_imu;
+  } else {
+    const bool groundtruth = run.pose_source == "groundtruth";
+    const std::string path =
+        groundtruth ? JoinPaths(run.input_path, "groundtruth.txt") : run.trajectory_path;
+    const Trajectory trajectory = ReadTum(path);
+    if (trajectory.empty()) throw InputError(path, "", "expected poses, found none");
+    for (size_t i = 0; i < num_frames; ++i) {
+      const TimestampNs t = lio.keyframes[i].t_ns;
+      std::optional<SE3> pose;
+      if (groundtruth) {
+        pose = trajectory.Interpolate(t, 100000000);
+      } else {
+        const int k = trajectory.Nearest(t, 1000000);
+        if (k >= 0) pose = trajectory[k].pose;
+      }
+      if (!pose) {
+        throw InputError(
+            path,
+            "",
+            fmt::format("expected a pose at keyframe {} (stamp {} ns, {:.6f} s; {}), "
+                        "found none (the trajectory covers {:.6f} to {:.6f} s)",
+                        i,
+                        t,
+                        NsToSeconds(t),
+                        groundtruth ? "interpolated across gaps up to 0.1 s" : "within 1 ms",
+                        NsToSeconds(trajectory.start_ns()),
+                        NsToSeconds(trajectory.end_ns())));
+      }
+      poses[i] = *pose;
+    }
+  }
+  // A keyframe in the sensor frame: lidar0's points (sensor_id 0) moved by lidar_from_imu.
+  auto load = [&](size_t i) {
+    PointCloud cloud = ReadPcd(lio.keyframes[i].cloud_path);
+    const Eigen::Matrix3f R = lidar_from_imu.RotationMatrix().cast<float>();
+    const Eigen::Vector3f t = lidar_from_imu.translation().cast<float>();
+    size_t kept = 0;
+    for (const LidarPoint& p : cloud.points) {
+      if (p.sensor_id != 0 || !std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z))
+        continue;
+      LidarPoint q = p;
+      const Eigen::Vector3f x = R * p.xyz() + t;
+      q.x = x.x();
+      q.y = x.y();
+      q.z = x.z();
+      cloud.points[kept++] = q;
+    }
+    cloud.points.resize(kept);
+    return cloud;
+  };
+  PointCloud current = load(0);
+  const LidarImageLayout layout =
+      FitLidarImageLayout(current, run.lidar, lio.keyframes[0].cloud_path);
+  LogInfo("{}: {} of {} keyframes, range image {}x{} ({:.3f} x {:.3f} deg, rows {}), poses: {}",
+          run.lio_path,
+          num_frames,
+          lio.keyframes.size(),
+          layout.projection.width(),
+          layout.projection.height(),
+          layout.projection.azimuth_step_rad() * 180 / M_PI,
+          layout.projection.elevation_step_rad() * 180 / M_PI,
+          layout.row_of_ring.empty() ? "by elevation" : "one per ring",
+          run.pose_source == "trajectory" ? run.trajectory_path : run.pose_source);
+  LidarFusion system(layout, run.lidar, run.fusion);
+
+  LogStage("Fusion");
+  ProgressReporter progress("fusion", static_cast<int64_t>(num_frames));
+  Trajectory trajectory;
+  double load_ms = 0, preprocess_ms = 0, fuse_ms = 0;
+  FuseStats totals;
+  const auto t_loop = std::chrono::steady_clock::now();
+  for (size_t i = 0; i < num_frames; ++i) {
+    // Load keyframe i + 1 while keyframe i is fused; a loading error is rethrown
+    // after both tasks (thrown inside parallel_invoke it would cancel the fusion).
+    PointCloud next;
+    double next_load_ms = 0;
+    std::exception_ptr load_error;
+    LidarFrameResult r;
+    tbb::parallel_invoke(
+        [&] {
+          if (i + 1 >= num_frames) return;
+          const auto t0 = std::chrono::steady_clock::now();
+          try {
+            next = load(i + 1);
+          } catch (...) {
+            load_error = std::current_exception();
+          }
+          next_load_ms = 1e3 * Seconds(t0);
+        },
+        [&] { r = system.AddScan(current, poses[i] * imu_from_lidar); });
+    if (load_error) std::rethrow_exception(load_error);
+    load_ms += next_load_ms;
+    preprocess_ms += r.preprocess_ms;
+    fuse_ms += r.fuse_ms;
+    totals.merged += r.fuse.merged;
+    totals.added += r.fuse.added;
+    totals.skipped += r.fuse.skipped;
+    totals.removed += r.fuse.removed;
+    trajectory.PushBack({lio.keyframes[i].t_ns, poses[i]});
+    current = std::move(next);
+    progress.Add();
+  }
+  progress.Finish();
+  const double loop_s = Seconds(t_loop);
+
+  LogStage("Writing outputs");
+  const auto t_write = std::chrono::steady_clock::now();
+  const SurfelMap& map = system.map();
+  const size_t stable = map.NumStable();
+  WriteTum(output.File("trajectory.txt"), trajectory);
+  WriteSurfelsPly(output.File("surfels.ply"), map);
+  WriteSphericalNormalMapPng(output.File("normals_first_keyframe.png"),
+                             map,
+                             poses.front() * imu_from_lidar,
+                             layout.projection);
+  WriteSphericalNormalMapPng(output.File("normals_last_keyframe.png"),
+                             map,
+                             poses.back() * imu_from_lidar,
+                             layout.projection);
+  const double compute_ms = preprocess_ms + fuse_ms;
+  const size_t scan_points = system.num_scan_points();
+  nlohmann::json summary;
+  summary["mode"] = "lidar";
+  summary["input_path"] = run.input_path;
+  summary["lio_path"] = run.lio_path;
+  summary["pose_source"] = run.pose_source;
+  summary["keyframes"] = num_frames;
+  summary["frames"] = num_frames;
+  summary["range_image"] = {
+      {"width", layout.projection.width()},
+      {"height", layout.projection.height()},
+      {"azimuth_step_deg", layout.projection.azimuth_step_rad() * 180 / M_PI},
+      {"elevation_step_deg", layout.projection.elevation_step_rad() * 180 / M_PI},
+      {"elevation_top_deg", layout.projection.elevation_top_rad() * 180 / M_PI},
+      {"rows_from_rings", !layout.row_of_ring.empty()}};
+  summary["scan_points"] = scan_points;
+  summary["input_points"] = system.num_input_points();
+  summary["surfels"] = stable;
+  summary["surfels_in_map"] = map.size();
+  summary["output_min_confidence"] = run.fusion.output_min_confidence;
+  // Surfels written / scan points within the range limits over all keyframes.
+  summary["compression_ratio"] = scan_points > 0 ? static_cast<double>(stable) / scan_points : 0.0;
+  summary["bytes_per_surfel"] = SurfelMap::BytesPerSurfel();
+  summary["map_bytes"] = map.size() * SurfelMap::BytesPerSurfel();
+  summary["observations"] = {{"merged", totals.merged},
+                             {"added", totals.added},
+                             {"skipped", totals.skipped},
+                             {"surfels_removed", totals.removed}};
+  summary["stage_ms"] = {{"load", load_ms},
+                         {"preprocess", preprocess_ms},
+                         {"fusion", fuse_ms},
+                         {"loop_wall", 1e3 * loop_s}};
+  summary["stage_ms_per_keyframe"] = {{"load", load_ms / num_frames},
+                                      {"preprocess", preprocess_ms / num_frames},
+                                      {"fusion", fuse_ms / num_frames},
+                                      {"loop_wall", 1e3 * loop_s / num_frames}};
+  summary["fusion_keyframes_per_s"] = compute_ms > 0 ? 1e3 * num_frames / compute_ms : 0.0;
+  summary["wall_keyframes_per_s"] = loop_s > 0 ? num_frames / loop_s : 0.0;
+  WriteFileAtomically(output.File("fusion_summary.json"), summary.dump(2) + "\n");
+  options.WriteConfig(output.File("config.yaml"));
+  output.Commit();
+  LogInfo(
+      "fusion: {} keyframes (range image {}x{}), {} surfels written (confidence >= {}; {} in the "
+      "map, {} bytes each; {:.2f} % of {} scan points), fusion {:.1f} keyframes/s ({:.1f} "
+      "ms/keyframe: preprocess {:.1f}, fusion {:.1f}), wall {:.1f} keyframes/s with loading; "
+      "writing {:.2f} s, total {:.1f} s; wrote {}/{{trajectory.txt, surfels.ply, "
+      "fusion_summary.json, normals_first_keyframe.png, normals_last_keyframe.png}}",
+      num_frames,
+      layout.projection.width(),
+      layout.projection.height(),
+      stable,
+      run.fusion.output_min_confidence,
+      map.size(),
+      SurfelMap::BytesPerSurfel(),
+      scan_points > 0 ? 100.0 * stable / scan_points : 0.0,
+      scan_points,
+      compute_ms > 0 ? 1e3 * num_frames / compute_ms : 0.0,
+      compute_ms / num_frames,
+      preprocess_ms / num_frames,
+      fuse_ms / num_frames,
+      loop_s > 0 ? num_frames / loop_s : 0.0,
+      Seconds(t_write),
+      Seconds(t_start),
+      output.final_path());
+  return 0;
+}
+
 }  // namespace
 
 int RunFusion(int argc, char** argv) {
   OptionManager options("lisfm fusion",
-                        "dense RGB-D SLAM: projective ICP (frame to model) and surfel fusion");
+                        "dense RGB-D SLAM: projective ICP (frame to model) and surfel fusion; "
+                        "--mode lidar: surfel fusion of lio keyframes with given poses");
   std::string input_path, output_path, mode = "rgbd", lio_path, pose_source = "icp",
                                        trajectory_path, layout = "auto", intrinsics_path;
   double depth_units_per_m = 0;
@@ -166,22 +432,27 @@ int RunFusion(int argc, char** argv) {
   options.AddRequiredString("input_path",
                             &input_path,
                             "RGB-D sequence: lisfm sequence folder (rgbd0/), TUM RGB-D or "
-                            "7-Scenes folder");
+                            "7-Scenes folder; --mode lidar: the sequence folder (rig.yaml)");
   options.AddRequiredString("output_path",
                             &output_path,
                             "output folder: trajectory.txt, surfels.ply, fusion_summary.json, "
                             "normals_{first,last}_camera.png, config.yaml");
-  options.AddChoice(
-      "mode", &mode, {"rgbd", "lidar"}, "input kind (lidar: lio keyframes; not available yet)");
+  options.AddChoice("mode",
+                    &mode,
+                    {"rgbd", "lidar"},
+                    "input kind: RGB-D frames, or (lidar) lio's de-skewed keyframes with given "
+                    "poses");
   options.AddString("lio_path", &lio_path, "--mode lidar: the lisfm lio output folder");
   options.AddChoice("pose_source",
                     &pose_source,
-                    {"icp", "groundtruth", "trajectory"},
-                    "camera poses: frame-to-model ICP, the data set's poses, or a TUM file");
+                    {"icp", "groundtruth", "trajectory", "lio"},
+                    "poses: frame-to-model ICP (rgbd), the data set's poses, a TUM file, or lio's "
+                    "keyframe poses (lidar; its default)");
   options.AddString("trajectory_path",
                     &trajectory_path,
-                    "--pose_source trajectory: TUM file of world_from_camera with a pose at "
-                    "every frame time");
+                    "--pose_source trajectory: TUM file of world_from_camera (rgbd) or "
+                    "world_from_imu (lidar: pose_slam's trajectory.txt) with a pose at every "
+                    "frame time");
   options.AddChoice("layout",
                     &layout,
                     {"auto", "lisfm", "tum", "7scenes"},
@@ -198,11 +469,45 @@ int RunFusion(int argc, char** argv) {
   AddRgbdFusionOptions(&options, &rgbd);
   AddSurfelFusionOptions(&options, &fusion);
   AddProjectiveIcpOptions(&options, &icp);
+  LidarFusionOptions lidar;
+  AddLidarFusionOptions(&options, &lidar);
   options.AddBool("overwrite", &overwrite, "replace an earlier lisfm output at --output_path");
   if (!options.Parse(argc, argv)) return 0;
   if (mode == "lidar") {
-    throw UsageError("--mode lidar: LiDAR keyframe fusion is not available yet; use --mode rgbd");
+    if (lio_path.empty()) throw UsageError("--mode lidar needs --lio_path (a lisfm lio output)");
+    if (pose_source == "icp") {
+      if (options.IsSet("pose_source")) {
+        throw UsageError(
+            "--mode lidar takes --pose_source lio, trajectory or groundtruth (not icp: the "
+            "keyframes are fused with given poses)");
+      }
+      pose_source = "lio";
+      options.Set("pose_source", "lio");
+    }
+    if (pose_source == "trajectory" && trajectory_path.empty()) {
+      throw UsageError("--pose_source trajectory needs --trajectory_path");
+    }
+    if (pose_source != "trajectory" && !trajectory_path.empty()) {
+      throw UsageError("--trajectory_path is only used with --pose_source trajectory");
+    }
+    for (const char* name : {"layout", "intrinsics_path", "depth_units_per_m"}) {
+      if (options.IsSet(name)) {
+        throw UsageError(fmt::format("--{} is only used with --mode rgbd", name));
+      }
+    }
+    LidarFusionRun run;
+    run.input_path = input_path;
+    run.output_path = output_path;
+    run.lio_path = lio_path;
+    run.pose_source = pose_source;
+    run.trajectory_path = trajectory_path;
+    run.max_frames = max_frames;
+    run.overwrite = overwrite;
+    run.lidar = lidar;
+    run.fusion = fusion;
+    return RunLidarFusion(run, options);
   }
+  if (pose_source == "lio") throw UsageError("--pose_source lio is only used with --mode lidar");
   if (pose_source == "trajectory" && trajectory_path.empty()) {
     throw UsageError("--pose_source trajectory needs --trajectory_path");
   }

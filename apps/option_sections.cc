@@ -160,6 +160,27 @@ void AddSurfelFusionOptions(OptionManager* options, SurfelFusionOptions* fusion)
   options->AddStructCheck([fusion] { return fusion->Check(); });
 }
 
+void AddLidarFusionOptions(OptionManager* options, LidarFusionOptions* lidar) {
+  options->AddDouble("LidarFusion.azimuth_resolution_deg", &lidar->azimuth_resolution_deg,
+                     "range image column width (deg; 360 / this columns)", R::Between(0.01, 10));
+  options->AddDouble("LidarFusion.elevation_resolution_deg", &lidar->elevation_resolution_deg,
+                     "range image row spacing (deg; 0 = one row per ring of the scan)",
+                     R::AtLeast(0).AndAtMost(10));
+  options->AddDouble("LidarFusion.min_range_m", &lidar->min_range_m,
+                     "ignore returns closer than this (m)", R::AtLeast(0));
+  options->AddDouble("LidarFusion.max_range_m", &lidar->max_range_m,
+                     "ignore returns farther than this (m)", R::GreaterThan(0));
+  options->RequireLess("LidarFusion.min_range_m", "LidarFusion.max_range_m");
+  options->AddDouble("LidarFusion.max_range_jump", &lidar->max_range_jump,
+                     "no normal difference to a neighbour whose range differs more than this "
+                     "fraction of the range",
+                     R::GreaterThan(0));
+  options->AddDouble("LidarFusion.max_incidence_deg", &lidar->max_incidence_deg,
+                     "drop returns seen more obliquely (angle between normal and ray, deg)",
+                     R::GreaterThan(0).AndAtMost(90));
+  options->AddStructCheck([lidar] { return lidar->Check(); });
+}
+
 void AddRgbdFusionOptions(OptionManager* options, RgbdFusionOptions* rgbd) {
   options->AddInt("Fusion.downsample_factor", &rgbd->downsample_factor,
                   "use every k-th pixel in both directions (2: 640x480 -> 320x240)",

@@ -17,6 +17,7 @@
 #include "core/options.h"
 #include "icp/bayesian_icp.h"
 #include "icp/icp.h"
+#include "icp/lidar_fusion.h"
 #include "icp/normals.h"
 #include "icp/projective_icp.h"
 #include "icp/rgbd_fusion.h"
@@ -54,6 +55,8 @@ void AddProjectiveIcpOptions(OptionManager* options, ProjectiveIcpOptions* icp);
 void AddSurfelFusionOptions(OptionManager* options, SurfelFusionOptions* fusion);
 // Fusion.*: RGB-D preprocessing and the tracking target (icp/rgbd_fusion.h).
 void AddRgbdFusionOptions(OptionManager* options, RgbdFusionOptions* rgbd);
+// LidarFusion.*: the range images of `lisfm fusion --mode lidar`.
+void AddLidarFusionOptions(OptionManager* options, LidarFusionOptions* lidar);
 
 // Lio.*, plus Map.* (AddVoxelMapOptions) and Init.* (AddImuInitializerOptions).
 void AddLioOptions(OptionManager* options, LioOptions* lio);

@@ -59,14 +59,7 @@ size_t SurfelMap::NumStable() const {
   return n;
 }
 
-void SurfelMap::RenderIndexMap(const SE3& world_from_camera,
-                               const PinholeIntrinsics& K,
-                               double min_confidence,
-                               int splat,
-                               std::vector<uint32_t>* index_map) const {
-  THROW_CHECK(K.width > 0 && K.height > 0 && K.fx > 0 && K.fy > 0);
-  THROW_CHECK(splat >= 0);
-  const size_t num_pixels = static_cast<size_t>(K.width) * static_cast<size_t>(K.height);
+std::atomic<uint64_t>* SurfelMap::ClearedZBuffer(size_t num_pixels) const {
   if (zbuffer_size_ < num_pixels) {
     zbuffer_.reset(new std::atomic<uint64_t>[num_pixels]);
     zbuffer_size_ = num_pixels;
@@ -78,6 +71,18 @@ void SurfelMap::RenderIndexMap(const SE3& world_from_camera,
                         zb[i].store(kEmptyKey, std::memory_order_relaxed);
                       }
                     });
+  return zb;
+}
+
+void SurfelMap::RenderIndexMap(const SE3& world_from_camera,
+                               const PinholeIntrinsics& K,
+                               double min_confidence,
+                               int splat,
+                               std::vector<uint32_t>* index_map) const {
+  THROW_CHECK(K.width > 0 && K.height > 0 && K.fx > 0 && K.fy > 0);
+  THROW_CHECK(splat >= 0);
+  const size_t num_pixels = static_cast<size_t>(K.width) * static_cast<size_t>(K.height);
+  std::atomic<uint64_t>* zb = ClearedZBuffer(num_pixels);
   const SE3 camera_from_world = world_from_camera.Inverse();
   const Eigen::Matrix3f R = camera_from_world.RotationMatrix().cast<float>();
   const Eigen::Vector3f t = camera_from_world.translation().cast<float>();
@@ -189,6 +194,122 @@ void SurfelMap::RenderVertexNormalMap(const SE3& world_from_camera,
   });
 }
 
+namespace {
+
+// The projection-specific parts of a fusion step (FuseImpl): the index map, the
+// column wrap of the association window and the radius of an observation.
+struct PinholeFuseCamera {
+  static constexpr bool kWrapsColumns = false;
+  const PinholeIntrinsics& K;
+  float f;  // mean focal length (pixels)
+  int width() const { return K.width; }
+  int height() const { return K.height; }
+  int WrapColumn(int u) const { return u; }
+  void Render(const SurfelMap& map, const SE3& pose, std::vector<uint32_t>* index_map) const {
+    map.RenderIndexMap(pose, K, 0.0, 0, index_map);
+  }
+  // sqrt(2) z / (f |cos a|) / 2.
+  float ObservedRadius(const Eigen::Vector3f& q, const Eigen::Vector3f& n) const {
+    const float cos_a = std::max(std::abs(n.dot(q)) / q.norm(), 0.2f);
+    return 0.70710678f * q.z() / (f * cos_a);
+  }
+};
+
+struct SphericalFuseCamera {
+  static constexpr bool kWrapsColumns = true;
+  const SphericalProjection& projection;
+  float half_diagonal_rad;  // sqrt(da^2 + de^2) / 2
+  int width() const { return projection.width(); }
+  int height() const { return projection.height(); }
+  int WrapColumn(int u) const { return projection.WrapColumn(u); }
+  void Render(const SurfelMap& map, const SE3& pose, std::vector<uint32_t>* index_map) const {
+    map.RenderIndexMap(pose, projection, 0.0, 0, index_map);
+  }
+  // r sqrt(da^2 + de^2) / (2 |cos a|).
+  float ObservedRadius(const Eigen::Vector3f& q, const Eigen::Vector3f& n) const {
+    const float r = q.norm();
+    const float cos_a = std::max(std::abs(n.dot(q)) / r, 0.2f);
+    return half_diagonal_rad * r / cos_a;
+  }
+};
+
+}  // namespace
+
+void SurfelMap::RenderIndexMap(const SE3& world_from_sensor,
+                               const SphericalProjection& projection,
+                               double min_confidence,
+                               int splat,
+                               std::vector<uint32_t>* index_map) const {
+  THROW_CHECK(projection.width() > 0 && projection.height() > 0);
+  THROW_CHECK(splat >= 0);
+  const size_t num_pixels = projection.num_pixels();
+  std::atomic<uint64_t>* zb = ClearedZBuffer(num_pixels);
+  const SE3 sensor_from_world = world_from_sensor.Inverse();
+  const Eigen::Matrix3f R = sensor_from_world.RotationMatrix().cast<float>();
+  const Eigen::Vector3f t = sensor_from_world.translation().cast<float>();
+  const float min_conf = static_cast<float>(min_confidence);
+  const Eigen::Vector3f centre = world_from_sensor.translation().cast<float>();
+  const int w = projection.width(), h = projection.height();
+  const float inv_da = static_cast<float>(1.0 / projection.azimuth_step_rad());
+  const float inv_de = static_cast<float>(1.0 / projection.elevation_step_rad());
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, surfels_.size(), 8192),
+                    [&](const tbb::blocked_range<size_t>& r) {
+                      for (size_t i = r.begin(); i != r.end(); ++i) {
+                        const Surfel& s = surfels_[i];
+                        if (s.confidence < min_conf) continue;
+                        if (s.normal.dot(s.position - centre) > 0)
+                          continue;  // facing away from the sensor
+                        const Eigen::Vector3f p = R * s.position + t;
+                        int u, v;
+                        float range;
+                        if (!projection.Project(p, &u, &v, &range)) continue;
+                        const uint64_t key = Key(range, static_cast<uint32_t>(i), false);
+                        AtomicMin(&zb[static_cast<size_t>(v) * w + u], key);
+                        if (splat == 0) continue;
+                        // The disc's half extents in pixels: r / (range cos e da) across, r /
+                        // (range de) along the rows.
+                        const float horizontal = std::max(std::hypot(p.x(), p.y()), 1e-6f);
+                        const float ru = s.radius_m * inv_da / horizontal,
+                                    rv = s.radius_m * inv_de / range;
+                        const int reach_u = std::min(splat, static_cast<int>(ru));
+                        const int reach_v = std::min(splat, static_cast<int>(rv));
+                        if (reach_u == 0 && reach_v == 0) continue;
+                        const float inv_ru2 = 1.f / std::max(ru * ru, 0.25f);
+                        const float inv_rv2 = 1.f / std::max(rv * rv, 0.25f);
+                        const Eigen::Vector3f n = R * s.normal;
+                        const float n_dot_p = n.dot(p);
+                        for (int dv = -reach_v; dv <= reach_v; ++dv) {
+                          const int vv = v + dv;
+                          if (vv < 0 || vv >= h) continue;
+                          for (int du = -reach_u; du <= reach_u; ++du) {
+                            if (du == 0 && dv == 0) continue;
+                            if (du * du * inv_ru2 + dv * dv * inv_rv2 > 1.f) continue;
+                            const int uu = projection.WrapColumn(u + du);
+                            // The range where the pixel's ray meets the surfel's plane; the
+                            // centre's range when the ray is nearly parallel to it.
+                            float z = range;
+                            const float n_dot_ray = n.dot(projection.Ray(uu, vv));
+                            if (n_dot_ray < -1e-3f) {
+                              const float zi = n_dot_p / n_dot_ray;
+                              if (zi > 0 && std::abs(zi - range) < 4.f * s.radius_m) z = zi;
+                            }
+                            AtomicMin(&zb[static_cast<size_t>(vv) * w + uu],
+                                      Key(z, static_cast<uint32_t>(i), true));
+                          }
+                        }
+                      }
+                    });
+  index_map->resize(num_pixels);
+  uint32_t* out = index_map->data();
+  tbb::parallel_for(
+      tbb::blocked_range<size_t>(0, num_pixels, 4096), [&](const tbb::blocked_range<size_t>& r) {
+        for (size_t i = r.begin(); i != r.end(); ++i) {
+          const uint64_t key = zb[i].load(std::memory_order_relaxed);
+          out[i] = key == kEmptyKey ? kNoSurfel : static_cast<uint32_t>(key & 0xffffffffu);
+        }
+      });
+}
+
 FuseStats SurfelMap::Fuse(const FusionFrame& frame, const SE3& world_from_camera, int frame_index) {
   const PinholeIntrinsics& K = frame.intrinsics;
   const size_t num_pixels = static_cast<size_t>(std::max(K.width, 0)) * std::max(K.height, 0);
@@ -205,8 +326,43 @@ FuseStats SurfelMap::Fuse(const FusionFrame& frame, const SE3& world_from_camera
                     frame.map.normals.size(),
                     frame.colors.size()));
   }
+  const PinholeFuseCamera camera{K, static_cast<float>(0.5 * (K.fx + K.fy))};
+  return FuseImpl(frame.map, frame.colors, camera, world_from_camera, frame_index);
+}
+
+FuseStats SurfelMap::Fuse(const VertexNormalMap& map,
+                          const std::vector<std::array<uint8_t, 3>>& colors,
+                          const SphericalProjection& projection,
+                          const SE3& world_from_sensor,
+                          int frame_index) {
+  const size_t num_pixels = projection.num_pixels();
+  if (num_pixels == 0 || map.width != projection.width() || map.height != projection.height() ||
+      map.vertices.size() != num_pixels || map.normals.size() != num_pixels ||
+      (!colors.empty() && colors.size() != num_pixels)) {
+    throw InputError(
+        "fusion range image",
+        fmt::format("frame {}", frame_index),
+        fmt::format("expected {}x{} vertices, normals and colours, found {}, {} and {}",
+                    projection.width(),
+                    projection.height(),
+                    map.vertices.size(),
+                    map.normals.size(),
+                    colors.size()));
+  }
+  const double da = projection.azimuth_step_rad(), de = projection.elevation_step_rad();
+  const SphericalFuseCamera camera{projection, static_cast<float>(0.5 * std::hypot(da, de))};
+  return FuseImpl(map, colors, camera, world_from_sensor, frame_index);
+}
+
+template <class Camera>
+FuseStats SurfelMap::FuseImpl(const VertexNormalMap& map,
+                              const std::vector<std::array<uint8_t, 3>>& colors,
+                              const Camera& camera,
+                              const SE3& world_from_camera,
+                              int frame_index) {
+  const size_t num_pixels = static_cast<size_t>(camera.width()) * camera.height();
   FuseStats stats;
-  RenderIndexMap(world_from_camera, K, 0.0, 0, &index_map_);
+  camera.Render(*this, world_from_camera, &index_map_);
   match_.resize(num_pixels);
   const Eigen::Matrix3f R = world_from_camera.RotationMatrix().cast<float>();
   const Eigen::Vector3f t = world_from_camera.translation().cast<float>();
@@ -214,14 +370,10 @@ FuseStats SurfelMap::Fuse(const FusionFrame& frame, const SE3& world_from_camera
       static_cast<float>(options_.max_merge_distance_m * options_.max_merge_distance_m);
   const float min_cos = static_cast<float>(std::cos(options_.max_merge_angle_deg * kDegToRad));
   const int radius = options_.association_radius_px;
-  const int w = K.width, h = K.height;
-  const VertexNormalMap& map = frame.map;
-  const float f = static_cast<float>(0.5 * (K.fx + K.fy));
+  const int w = camera.width(), h = camera.height();
   // Radius of the observation of pixel i (header comment).
   auto observed_radius = [&](size_t i) {
-    const Eigen::Vector3f& q = map.vertices[i];
-    const float cos_a = std::max(std::abs(map.normals[i].dot(q)) / q.norm(), 0.2f);
-    return 0.70710678f * q.z() / (f * cos_a);
+    return camera.ObservedRadius(map.vertices[i], map.normals[i]);
   };
   // The rendered surfels in pixel order (one gather), so that the window search
   // below reads neighbouring pixels instead of scattered surfels.
@@ -266,7 +418,8 @@ FuseStats SurfelMap::Fuse(const FusionFrame& frame, const SE3& world_from_camera
         const int vv = v + dv;
         if (vv < 0 || vv >= h) continue;
         for (int du = -radius; du <= radius; ++du) {
-          const int uu = u + du;
+          int uu = u + du;
+          if (Camera::kWrapsColumns) uu = camera.WrapColumn(uu);
           if (uu < 0 || uu >= w || (du == 0 && dv == 0)) continue;
           const RenderedSurfel& candidate = rendered_[static_cast<size_t>(vv) * w + uu];
           float d2;
@@ -286,7 +439,7 @@ FuseStats SurfelMap::Fuse(const FusionFrame& frame, const SE3& world_from_camera
     const Eigen::Vector3f& nc = map.normals[i];
     const float radius_m = observed_radius(i);
     const std::array<uint8_t, 3> color =
-        frame.colors.empty() ? std::array<uint8_t, 3>{128, 128, 128} : frame.colors[i];
+        colors.empty() ? std::array<uint8_t, 3>{128, 128, 128} : colors[i];
     const uint32_t m = match_[i];
     if (m != kNoSurfel) {
       Surfel& s = surfels_[m];

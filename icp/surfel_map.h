@@ -29,6 +29,12 @@
 // / 2 with a the angle between the normal and the viewing ray (|cos a| >= 0.2),
 // f the mean focal length.
 //
+// Spinning LiDAR frames (range images, icp/spherical_projection.h) fuse by the
+// same steps with the spherical projection in place of the pinhole: the index map
+// keeps the nearest range per pixel, the association window wraps around in
+// azimuth, and an observation's radius is the pixel footprint
+// r sqrt(da^2 + de^2) / (2 |cos a|) with r the range and da, de the angular steps.
+//
 // Threads: rendering runs in parallel (TBB, atomic z-buffer whose ties are broken
 // by the lower surfel index); association, merge and addition visit pixels in row
 // order. Results do not depend on the thread count. Not thread-safe itself.
@@ -43,6 +49,7 @@
 #include "core/geometry.h"
 #include "icp/icp.h"
 #include "icp/projective_icp.h"
+#include "icp/spherical_projection.h"
 
 namespace lisfm {
 
@@ -117,6 +124,25 @@ class SurfelMap {
                              int splat,
                              VertexNormalMap* out) const;
 
+  // Steps 1-5 for a range image of a spinning LiDAR at world_from_sensor: `map` has
+  // projection's size, vertices and normals in the sensor frame; colors is empty or
+  // one per pixel. Throws InputError when the sizes do not match.
+  FuseStats Fuse(const VertexNormalMap& map,
+                 const std::vector<std::array<uint8_t, 3>>& colors,
+                 const SphericalProjection& projection,
+                 const SE3& world_from_sensor,
+                 int frame_index);
+
+  // RenderIndexMap for a spherical image: nearest range per pixel; `splat` > 0 also
+  // covers the pixels within the surfel's projected disc (an ellipse: the angular
+  // steps differ; at most splat pixels away in each direction) at the range where
+  // their rays meet the surfel's plane.
+  void RenderIndexMap(const SE3& world_from_sensor,
+                      const SphericalProjection& projection,
+                      double min_confidence,
+                      int splat,
+                      std::vector<uint32_t>* index_map) const;
+
   // Step 5 alone, at frame index `frame_index`; returns how many were removed.
   size_t RemoveUnstable(int frame_index);
 
@@ -131,6 +157,15 @@ class SurfelMap {
   static constexpr size_t BytesPerSurfel() { return sizeof(Surfel); }
 
  private:
+  template <class Camera>
+  FuseStats FuseImpl(const VertexNormalMap& map,
+                     const std::vector<std::array<uint8_t, 3>>& colors,
+                     const Camera& camera,
+                     const SE3& world_from_camera,
+                     int frame_index);
+  // Clears the z-buffer for num_pixels pixels and returns it.
+  std::atomic<uint64_t>* ClearedZBuffer(size_t num_pixels) const;
+
   SurfelFusionOptions options_;
   std::vector<Surfel> surfels_;
   // Per-frame workspaces (kept to avoid allocations per frame).
