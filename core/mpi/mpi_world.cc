@@ -16,10 +16,6 @@
 
 #include "core/errors.h"
 
-#if defined(__SANITIZE_ADDRESS__)
-#include <sanitizer/lsan_interface.h>
-#endif
-
 namespace lisfm::mpi {
 namespace {
 
@@ -57,28 +53,6 @@ int ExchangeExitCode(int exit_code) {
   return exit_code != 0 ? exit_code : static_cast<int>(root_code);
 }
 
-// LeakSanitizer ignores the allocations made while one of these lives. Open MPI
-// keeps allocations of its dlopen'ed components past MPI_Finalize, and their
-// stacks end in unloaded modules, so no suppression file can name them; only
-// MPI_Init_thread and MPI_Finalize run under it, lisfm's own code never does.
-class MpiLeakScope {
- public:
-#if defined(__SANITIZE_ADDRESS__)
-  MpiLeakScope() { __lsan_disable(); }
-  ~MpiLeakScope() { __lsan_enable(); }
-#else
-  MpiLeakScope() {}   // user-provided: a scope object, not an unused variable
-  ~MpiLeakScope() {}  // NOLINT(modernize-use-equals-default)
-#endif
-  MpiLeakScope(const MpiLeakScope&) = delete;
-  MpiLeakScope& operator=(const MpiLeakScope&) = delete;
-};
-
-void FinalizeMpi() {
-  const MpiLeakScope scope;
-  MPI_Finalize();
-}
-
 }  // namespace
 
 bool StartedByLauncher() {
@@ -92,10 +66,7 @@ void Init(int* argc, char*** argv) {
   if (g_active || !StartedByLauncher()) return;
   int provided = 0;
   // Only the main thread calls MPI (TBB workers never do).
-  {
-    const MpiLeakScope scope;
-    MPI_Init_thread(argc, argv, MPI_THREAD_FUNNELED, &provided);
-  }
+  MPI_Init_thread(argc, argv, MPI_THREAD_FUNNELED, &provided);
   g_active = true;
   MPI_Comm_size(MPI_COMM_WORLD, &g_size);
   MPI_Comm_rank(MPI_COMM_WORLD, &g_rank);
@@ -241,7 +212,7 @@ std::optional<std::vector<std::string>> RunWorkList(const std::vector<double>& c
 int Finish(int exit_code, bool collective_error) {
   if (!g_active) return exit_code;
   if (collective_error || g_size == 1) {
-    FinalizeMpi();
+    MPI_Finalize();
     return exit_code;
   }
   if (!g_released && exit_code != 0) {
@@ -251,7 +222,7 @@ int Finish(int exit_code, bool collective_error) {
     MPI_Abort(MPI_COMM_WORLD, exit_code);
   }
   const int code = ExchangeExitCode(exit_code);
-  FinalizeMpi();
+  MPI_Finalize();
   return code;
 }
 
