@@ -90,6 +90,13 @@ class YamlSource {
     return node.Scalar();
   }
 
+  // A map key as text; a key that is not a plain scalar (e.g. a map or list used as a
+  // key, valid YAML) is an error naming `section` and the key's line.
+  std::string Key(const YAML::Node& key, const std::string& section) const {
+    if (!key.IsScalar()) Fail(section, key, "expected a name as map key, found " + Kind(key));
+    return key.Scalar();
+  }
+
   // A flow or block list of numbers; `expected_size` < 0 accepts any length.
   std::vector<double> DoubleList(const YAML::Node& node,
                                  const std::string& field,
@@ -266,7 +273,7 @@ RigCamera ParseCamera(const YamlSource& src, const YAML::Node& node, const std::
                                                "distortion_coeffs", "resolution", "T_cam_imu",
                                                "timeshift_cam_imu", "rostopic"};
   for (const auto& entry : node) {
-    const std::string key = entry.first.as<std::string>();
+    const std::string key = src.Key(entry.first, section_name);
     if (kKnown.count(key) == 0 && kIgnoredCameraKeys.count(key) == 0) {
       LogWarning("{}:{}.{}: unknown field ignored", src.path(), s, key);
     }
@@ -300,7 +307,7 @@ ImuNoise ParseImu(const YamlSource& src, const YAML::Node& node, const std::stri
   }
   if (node["rostopic"].IsDefined()) *rostopic = src.String(node["rostopic"], s + ".rostopic");
   for (const auto& entry : node) {
-    const std::string key = entry.first.as<std::string>();
+    const std::string key = src.Key(entry.first, s);
     if (known.count(key) == 0) LogWarning("{}:{}.{}: unknown field ignored", src.path(), s, key);
   }
   return imu;
@@ -356,7 +363,7 @@ RigLidar ParseLidar(const YamlSource& src, const YAML::Node& node, const std::st
   static const std::set<std::string> kKnown = {"name", "type", "T_imu_lidar", "time_offset", "rings",
                                                "min_range", "max_range", "scan_rate", "rostopic"};
   for (const auto& entry : node) {
-    const std::string key = entry.first.as<std::string>();
+    const std::string key = src.Key(entry.first, s);
     if (kKnown.count(key) == 0) LogWarning("{}:{}.{}: unknown field ignored", src.path(), s, key);
   }
   return lidar;
@@ -421,7 +428,7 @@ Rig ParseRigYamlNodes(const std::string& text, const std::string& path_for_error
   std::vector<std::pair<int, RigCamera>> cameras;
   bool have_imu = false;
   for (const auto& entry : root) {
-    const std::string key = entry.first.as<std::string>();
+    const std::string key = src.Key(entry.first, "top level");
     const int index = CameraIndexFromKey(key);
     if (index >= 0) {
       cameras.emplace_back(index, ParseCamera(src, entry.second, key));
@@ -443,7 +450,7 @@ Rig ParseRigYamlNodes(const std::string& text, const std::string& path_for_error
         }
       } else if (lidars.IsMap()) {
         for (const auto& lidar_entry : lidars) {
-          const std::string name = lidar_entry.first.as<std::string>();
+          const std::string name = src.Key(lidar_entry.first, "lidars");
           RigLidar lidar = ParseLidar(src, lidar_entry.second, "lidars." + name);
           lidar.name = name;
           rig.lidars.push_back(lidar);
@@ -469,17 +476,23 @@ Rig ParseRigYamlNodes(const std::string& text, const std::string& path_for_error
   return rig;
 }
 
+// Runs `parse` and turns a yaml-cpp exception that escapes the field checks (a node of
+// another kind than the reader asks for) into an InputError naming `path` and the line.
+template <typename Parse>
+auto WithYamlStructureErrors(const std::string& path, Parse parse) -> decltype(parse()) {
+  try {
+    return parse();
+  } catch (const YAML::Exception& e) {
+    throw InputError(path, "line " + std::to_string(e.mark.line + 1),
+                     "unexpected YAML structure: " + e.msg);
+  }
+}
+
 }  // namespace
 
 Rig ParseRigYaml(const std::string& text, const std::string& path_for_errors) {
-  try {
-    return ParseRigYamlNodes(text, path_for_errors);
-  } catch (const YAML::Exception& e) {
-    // A node of another kind than the reader asks for (e.g. a map as a key).
-    throw InputError(path_for_errors,
-                     "line " + std::to_string(e.mark.line + 1),
-                     "unexpected YAML structure: " + e.msg);
-  }
+  return WithYamlStructureErrors(path_for_errors,
+                                 [&] { return ParseRigYamlNodes(text, path_for_errors); });
 }
 
 Rig ReadRigYaml(const std::string& path) {
@@ -563,7 +576,9 @@ std::vector<int> KalibrFileCameraIndices(const std::string& path) {
   return indices;
 }
 
-std::vector<RigLidar> ReadLidarCalibration(const std::string& path) {
+namespace {
+
+std::vector<RigLidar> ReadLidarCalibrationNodes(const std::string& path) {
   // Conventions of HILTI's lidar_calibration.yaml, which states neither:
   //  * Quaternion order x, y, z, w. The PandarXT-32 entry is
   //    [0.7071068, -0.7071068, 0, 0]. Read as (x, y, z, w) it is a 180 deg
@@ -597,7 +612,7 @@ std::vector<RigLidar> ReadLidarCalibration(const std::string& path) {
   static const std::regex kLivoxName("livox|mid-?[0-9]|avia");
   std::vector<RigLidar> lidars;
   for (const auto& entry : sensors) {
-    const std::string sensor = entry.first.as<std::string>();
+    const std::string sensor = src.Key(entry.first, "sensors");
     const std::string lower = ToLower(sensor);
     if (!std::regex_search(lower, kLidarName)) {
       LogDebug("{}: sensors.{} is not a LiDAR; skipped", path, sensor);
@@ -646,53 +661,63 @@ std::vector<RigLidar> ReadLidarCalibration(const std::string& path) {
   return lidars;
 }
 
+}  // namespace
+
+std::vector<RigLidar> ReadLidarCalibration(const std::string& path) {
+  return WithYamlStructureErrors(path, [&] { return ReadLidarCalibrationNodes(path); });
+}
+
 Rig LoadKalibrRig(const std::vector<std::string>& camchain_paths,
                   const std::string& lidar_calibration_path) {
   if (camchain_paths.empty()) throw InputError("LoadKalibrRig: no Kalibr camchain file given");
   std::vector<std::pair<int, RigCamera>> cameras;
   std::map<int, std::string> origin;  // rig index -> file, for duplicate errors
   for (const std::string& path : camchain_paths) {
-    const YamlSource src(path);
-    const YAML::Node root = LoadYamlFile(path);
-    if (!root.IsMap()) src.Fail("cam0", root, "expected a Kalibr camchain (a map of cam0..)");
-    std::vector<std::pair<int, std::string>> in_file;  // (in-file index, key)
-    for (const auto& entry : root) {
-      const std::string key = entry.first.as<std::string>();
-      const int index = CameraIndexFromKey(key);
-      if (index >= 0) {
-        in_file.emplace_back(index, key);
-      } else {
-        LogWarning("{}:{}: not a camera section; ignored", path, key);
+    WithYamlStructureErrors(path, [&] {
+      const YamlSource src(path);
+      const YAML::Node root = LoadYamlFile(path);
+      if (!root.IsMap()) src.Fail("cam0", root, "expected a Kalibr camchain (a map of cam0..)");
+      std::vector<std::pair<int, std::string>> in_file;  // (in-file index, key)
+      for (const auto& entry : root) {
+        const std::string key = src.Key(entry.first, "top level");
+        const int index = CameraIndexFromKey(key);
+        if (index >= 0) {
+          in_file.emplace_back(index, key);
+        } else {
+          LogWarning("{}:{}: not a camera section; ignored", path, key);
+        }
       }
-    }
-    std::sort(in_file.begin(), in_file.end());
-    if (in_file.empty()) throw InputError(path, "cam0", "missing (no camera in the file)");
-    std::vector<int> rig_indices = KalibrFileCameraIndices(path);
-    if (rig_indices.size() == 2 && in_file.size() > 2 && rig_indices[1] > rig_indices[0] &&
-        rig_indices[1] - rig_indices[0] + 1 == static_cast<int>(in_file.size())) {
-      // "cam0-3" naming a range.
-      const int first = rig_indices[0];
-      rig_indices.clear();
-      for (size_t j = 0; j < in_file.size(); ++j) rig_indices.push_back(first + static_cast<int>(j));
-    }
-    if (rig_indices.empty()) {
-      for (const auto& [index, key] : in_file) rig_indices.push_back(index);
-    } else if (rig_indices.size() != in_file.size()) {
-      throw InputError(path, "",
-                       fmt::format("the file name names {} camera(s) but the file holds {}",
-                                   rig_indices.size(), in_file.size()));
-    }
-    for (size_t j = 0; j < in_file.size(); ++j) {
-      RigCamera camera = ParseCamera(src, root[in_file[j].second], in_file[j].second);
-      const int index = rig_indices[j];
-      camera.name = fmt::format("cam{}", index);
-      if (origin.count(index)) {
-        throw InputError(path, in_file[j].second,
-                         fmt::format("rig camera cam{} already defined by {}", index, origin[index]));
+      std::sort(in_file.begin(), in_file.end());
+      if (in_file.empty()) throw InputError(path, "cam0", "missing (no camera in the file)");
+      std::vector<int> rig_indices = KalibrFileCameraIndices(path);
+      if (rig_indices.size() == 2 && in_file.size() > 2 && rig_indices[1] > rig_indices[0] &&
+          rig_indices[1] - rig_indices[0] + 1 == static_cast<int>(in_file.size())) {
+        // "cam0-3" naming a range.
+        const int first = rig_indices[0];
+        rig_indices.clear();
+        for (size_t j = 0; j < in_file.size(); ++j) {
+          rig_indices.push_back(first + static_cast<int>(j));
+        }
       }
-      origin[index] = path;
-      cameras.emplace_back(index, std::move(camera));
-    }
+      if (rig_indices.empty()) {
+        for (const auto& [index, key] : in_file) rig_indices.push_back(index);
+      } else if (rig_indices.size() != in_file.size()) {
+        throw InputError(path, "",
+                         fmt::format("the file name names {} camera(s) but the file holds {}",
+                                     rig_indices.size(), in_file.size()));
+      }
+      for (size_t j = 0; j < in_file.size(); ++j) {
+        RigCamera camera = ParseCamera(src, root[in_file[j].second], in_file[j].second);
+        const int index = rig_indices[j];
+        camera.name = fmt::format("cam{}", index);
+        if (origin.count(index)) {
+          throw InputError(path, in_file[j].second,
+                           fmt::format("rig camera cam{} already defined by {}", index, origin[index]));
+        }
+        origin[index] = path;
+        cameras.emplace_back(index, std::move(camera));
+      }
+    });
   }
   CheckCameraIndices(&cameras, camchain_paths.front());
   Rig rig;

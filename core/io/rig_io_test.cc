@@ -331,6 +331,31 @@ TEST(RigIo, KalibrLoaderRemapsAndChecksIndices) {
                                      {"lidar.yaml:sensors.PandarXT-32.parent: expected 'imu'"}));
 }
 
+// A map or list used as a map key is valid YAML; every reader rejects it as an InputError
+// naming the file, the section and the line (never an escaping yaml-cpp exception).
+TEST(RigIo, NonScalarMapKeysAreInputErrors) {
+  const test::TempDir dir;
+  const std::string cam = kCameraBody;
+  test::WriteText(dir.File("key_cam0-camchain-imucam.yaml"),
+                  "cam0:\n" + cam + "? {a: 1}\n: 2\n");
+  EXPECT_TRUE(test::ThrowsInputError(
+      [&] { LoadKalibrRig({dir.File("key_cam0-camchain-imucam.yaml")}, ""); },
+      {"key_cam0-camchain-imucam.yaml:top level: expected a name as map key, found a map",
+       "(line 12)"}));
+  test::WriteText(dir.File("field_cam0-camchain-imucam.yaml"),
+                  "cam0:\n" + cam + "  ? [1, 2]\n  : 3\n");
+  EXPECT_TRUE(test::ThrowsInputError(
+      [&] { LoadKalibrRig({dir.File("field_cam0-camchain-imucam.yaml")}, ""); },
+      {"field_cam0-camchain-imucam.yaml:cam0: expected a name as map key, found a list"}));
+  test::WriteText(dir.File("lidar_key.yaml"), "sensors:\n  ? {PandarXT-32: 1}\n  : 2\n");
+  EXPECT_TRUE(
+      test::ThrowsInputError([&] { ReadLidarCalibration(dir.File("lidar_key.yaml")); },
+                             {"lidar_key.yaml:sensors: expected a name as map key, found a map"}));
+  EXPECT_NE(ReadError(dir, "cam0:\n" + cam + "lidars:\n  ? [x]\n  : {}\n")
+                .find("rig.yaml:lidars: expected a name as map key, found a list"),
+            std::string::npos);
+}
+
 // Reads a 4x4 Kalibr matrix straight with yaml-cpp (independent of rig_io).
 Mat4 KalibrMatrix(const std::string& path, const std::string& cam, const std::string& key) {
   const YAML::Node node = YAML::LoadFile(path)[cam][key];
