@@ -162,8 +162,9 @@ std::map<std::string, OptionList> ReadPipelineConfig(const std::string& path) {
     throw InputError(path, "", "expected a mapping of stage names to option maps");
   }
   for (const auto& item : root) {
-    const std::string key = item.first.as<std::string>();
     const std::string where = "line " + std::to_string(item.first.Mark().line + 1);
+    if (!item.first.IsScalar()) throw InputError(path, where, "expected a stage name as map key");
+    const std::string key = item.first.Scalar();
     const auto& keys = ConfigKeys();
     if (std::find(keys.begin(), keys.end(), key) == keys.end()) {
       const std::string near = NearestName(key, keys);
@@ -182,8 +183,11 @@ std::map<std::string, OptionList> ReadPipelineConfig(const std::string& path) {
       throw InputError(path, where, "'" + key + "' must be a map of option names to values");
     }
     for (const auto& option : item.second) {
-      std::string name = option.first.as<std::string>();
       const std::string option_where = "line " + std::to_string(option.first.Mark().line + 1);
+      if (!option.first.IsScalar()) {
+        throw InputError(path, option_where, "expected an option name as map key in '" + key + "'");
+      }
+      std::string name = option.first.Scalar();
       while (!name.empty() && name.front() == '-') name.erase(name.begin());
       if (name.empty()) throw InputError(path, option_where, "empty option name in '" + key + "'");
       if (!option.second.IsScalar()) {

@@ -45,14 +45,22 @@ std::string DoubleToString(double v) {
   return s.str();
 }
 
-void FlattenYaml(const YAML::Node& node,
+// Flattens nested maps into dotted option names; a key that is not a plain scalar
+// (a map or list used as a key, valid YAML) is an InputError naming `path` and the line.
+void FlattenYaml(const std::string& path,
+                 const YAML::Node& node,
                  const std::string& prefix,
                  std::vector<std::pair<std::string, YAML::Node>>* out) {
   for (const auto& kv : node) {
-    const std::string key = kv.first.as<std::string>();
+    if (!kv.first.IsScalar()) {
+      throw InputError(path, "line " + std::to_string(kv.first.Mark().line + 1),
+                       "expected an option name as map key, found a " +
+                           std::string(kv.first.IsMap() ? "map" : "list"));
+    }
+    const std::string key = kv.first.Scalar();
     const std::string name = prefix.empty() ? key : prefix + "." + key;
     if (kv.second.IsMap()) {
-      FlattenYaml(kv.second, name, out);
+      FlattenYaml(path, kv.second, name, out);
     } else {
       out->emplace_back(name, kv.second);
     }
@@ -421,7 +429,7 @@ void OptionManager::ApplyConfigFile(const std::string& path) {
   }
   if (!root.IsMap()) throw InputError(path, "", "expected a mapping of option names to values");
   std::vector<std::pair<std::string, YAML::Node>> items;
-  FlattenYaml(root, "", &items);
+  FlattenYaml(path, root, "", &items);
   std::vector<std::pair<const Entry*, std::string>> seen;  // entry, name used in the file
   for (const auto& [name, node] : items) {
     Entry* found = Find(name);

@@ -147,6 +147,12 @@ TEST(Options, BadConfigFileNamesFileAndLine) {
   Fixture h;
   Args c({"lisfm icp", "--config_path", dir.File("missing.yaml")});
   EXPECT_THROW(h.options.Parse(c.argc(), c.argv()), InputError);
+  // A map used as a key (valid YAML) names the file and the key's line.
+  test::WriteText(dir.File("complex_key.yaml"), "input_path: a\nIcp:\n  ? {x: 1}\n  : 2\n");
+  Fixture k;
+  Args d({"lisfm icp", "--config_path", dir.File("complex_key.yaml")});
+  EXPECT_TRUE(test::ThrowsInputError([&] { k.options.Parse(d.argc(), d.argv()); },
+                                     {"complex_key.yaml:line 3", "found a map"}));
 }
 
 struct RangedFixture {

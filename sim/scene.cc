@@ -99,7 +99,10 @@ void ReadMaterialPools(const std::string& path, const YAML::Node& node, Material
                      "list of material names");
   }
   for (const auto& kv : node) {
-    const std::string cls = kv.first.as<std::string>();
+    if (!kv.first.IsScalar()) {
+      throw InputError(path, "field materials", "expected a surface class name as map key");
+    }
+    const std::string cls = kv.first.Scalar();
     int index = -1;
     for (int c = 0; c < kNumSurfaceClasses; ++c) {
       if (cls == SurfaceClassName(static_cast<SurfaceClass>(c))) index = c;
@@ -139,16 +142,23 @@ SceneOptions ReadSceneOptions(const std::string& path) {
   }
   if (!root.IsMap()) throw InputError(path, "line 1", "expected a YAML map of scene options");
   if (!root["type"]) throw InputError(path, "field type", "expected office|staircase|hall|site");
+  if (!root["type"].IsScalar()) {
+    throw InputError(path, "field type", "expected office, staircase, hall or site");
+  }
   SceneOptions o;
   try {
-    o = DefaultSceneOptions(root["type"].as<std::string>());
+    o = DefaultSceneOptions(root["type"].Scalar());
   } catch (const InputError&) {
     throw InputError(path, "field type",
-                     "expected office, staircase, hall or site, found '" +
-                         root["type"].as<std::string>() + "'");
+                     "expected office, staircase, hall or site, found '" + root["type"].Scalar() +
+                         "'");
   }
   for (const auto& kv : root) {
-    const std::string key = kv.first.as<std::string>();
+    if (!kv.first.IsScalar()) {
+      throw InputError(path, "line " + std::to_string(kv.first.Mark().line + 1),
+                       "expected a scene option name as map key");
+    }
+    const std::string key = kv.first.Scalar();
     try {
       if (key == "type") continue;
       else if (key == "seed") o.seed = kv.second.as<int>();
