@@ -23,7 +23,10 @@
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
+#include <set>
 #include <sstream>
+#include <tuple>
+#include <vector>
 
 #include "core/errors.h"
 #include "core/file_utils.h"
@@ -105,13 +108,16 @@ std::string ReadFilePrefix(const std::string& path, size_t n) {
 // allocates a record's announced lengths before reading them (up to 4 GiB each),
 // and a chunk's uncompressed `size` before decompressing it, so a damaged length
 // must be refused here. Header fields: u32 length, "name=value".
-std::string BagRecordError(const std::string& path) {
+// `first_record` is the byte after the version line.
+std::string BagRecordError(const std::string& path, uint64_t first_record) {
   constexpr uint64_t kMaxHeaderBytes = uint64_t{1} << 20;  // headers hold a few fields
   constexpr uint64_t kMaxChunkBytes = uint64_t{1} << 30;   // uncompressed chunk (1 GiB)
   std::ifstream in(path, std::ios::binary);
   in.seekg(0, std::ios::end);
   const uint64_t file_size = static_cast<uint64_t>(std::max<std::streamoff>(in.tellg(), 0));
-  uint64_t pos = 13;  // after the magic line
+  uint64_t pos = first_record;
+  std::set<uint64_t> record_starts;
+  std::vector<std::tuple<uint64_t, uint64_t, const char*>> pointers;  // record, offset, field
   const auto read_u32 = [&](uint64_t at, uint32_t* v) {
     in.seekg(static_cast<std::streamoff>(at));
     return static_cast<bool>(in.read(reinterpret_cast<char*>(v), 4));
@@ -153,6 +159,18 @@ std::string BagRecordError(const std::string& path) {
       if (eq != std::string::npos) fields[field.substr(0, eq)] = field.substr(eq + 1);
       i += 4 + field_len;
     }
+    const auto u64_field = [&](const char* key, uint64_t* v) {
+      if (fields[key].size() != 8) return false;
+      std::memcpy(v, fields[key].data(), 8);
+      return true;
+    };
+    record_starts.insert(pos);
+    uint64_t at = 0;
+    if (fields["op"] == std::string(1, '\x03') && u64_field("index_pos", &at)) {
+      pointers.emplace_back(pos, at, "index_pos");
+    } else if (fields["op"] == std::string(1, '\x06') && u64_field("chunk_pos", &at)) {
+      pointers.emplace_back(pos, at, "chunk_pos");
+    }
     if (fields["op"] == std::string(1, '\x05')) {  // a chunk
       uint32_t size = 0;
       if (fields["size"].size() == 4) std::memcpy(&size, fields["size"].data(), 4);
@@ -168,7 +186,39 @@ std::string BagRecordError(const std::string& path) {
     }
     pos = data_at + 4 + data_len;
   }
+  // rosbag_storage seeks to these offsets and reads a record there: each must be the
+  // start of a record (index_pos 0 marks an unindexed bag, which rosbag_storage refuses).
+  for (const auto& [record, target, name] : pointers) {
+    if (target != 0 && record_starts.count(target) == 0) {
+      return fmt::format("record at byte {}: {} {} is not the start of a record", record, name,
+                         target);
+    }
+  }
   return "";
+}
+
+// rosbag_storage accepts any first line "#ROS<name> V<major>.<minor>" up to the first
+// newline and then reads records of that format version. Returns "" for a file that
+// is not such a bag (rosbag_storage then refuses it itself) or a format 2.0 bag whose
+// records all lie inside the file, else what is wrong. Other versions (1.x) are
+// refused: their record layout is not checked here.
+std::string BagVersionAndRecordError(const std::string& path) {
+  constexpr size_t kMaxVersionLine = 4096;
+  const std::string head = ReadFilePrefix(path, kMaxVersionLine);
+  if (head.compare(0, 4, "#ROS") != 0) return "";
+  const size_t newline = head.find('\n');
+  if (newline == std::string::npos) {
+    return fmt::format("no end of the version line within its first {} bytes", head.size());
+  }
+  const std::string line = head.substr(0, newline);
+  char name[100];
+  int major = 0, minor = 0;
+  if (std::sscanf(line.c_str(), "#ROS%99s V%d.%d", name, &major, &minor) != 3) return "";
+  if (major != 2 || minor != 0) {
+    return fmt::format("bag format version {}.{}; only 2.0 is read (`rosbag fix` converts)",
+                       major, minor);
+  }
+  return BagRecordError(path, newline + 1);
 }
 
 TimestampNs ToNs(const ros::Time& t) { return static_cast<TimestampNs>(t.toNSec()); }
@@ -370,17 +420,14 @@ BagImportSummary ImportBag(const std::string& bag_path,
   for (const std::string& path : paths) {
     bags.push_back(std::make_unique<rosbag::Bag>());
     try {
-      const std::string head = ReadFilePrefix(path, 13);
-      if (head == "#ROSBAG V2.0\n") {
-        const std::string error = BagRecordError(path);
-        if (!error.empty()) throw std::runtime_error(error);
-      }
+      const std::string error = BagVersionAndRecordError(path);
+      if (!error.empty()) throw std::runtime_error(error);
       bags.back()->open(path, rosbag::bagmode::Read);
     } catch (const std::exception& e) {
       // A bag starts with "#ROSBAG V2.0\n"; one that does but fails to open has
       // lost its index (an interrupted recording) or is damaged.
-      const std::string head = ReadFilePrefix(path, 13);
-      if (head == "#ROSBAG V2.0\n") {
+      const std::string head = ReadFilePrefix(path, 4);
+      if (head == "#ROS") {
         throw InputError(fmt::format(
             "{}: ROS1 bag cannot be opened (truncated, unindexed or corrupted; `rosbag reindex` "
             "repairs an unindexed bag): {}",

@@ -12,6 +12,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <functional>
@@ -301,6 +302,43 @@ TEST_F(BagTest, BadBagsAreOneInputErrorNamingBagTopicAndMessage) {
                     {huge_record,
                      "truncated, unindexed or corrupted",
                      "record at byte 13: header of 4294967280 bytes"});
+
+  // A version line that does not end after "V2.0" (rosbag_storage reads up to the
+  // newline): the records after it are checked all the same.
+  const std::string long_version = dir_->File("long_version.bag");
+  {
+    std::string bytes = ReadFile(good);
+    bytes.replace(12, 1, "\xfa\n");
+    bytes.replace(14, 4, "\xf0\xff\xff\xff");
+    test::WriteText(long_version, bytes);
+  }
+  ExpectImportError(long_version, velodyne,
+                    {long_version, "record at byte 14: header of 4294967280 bytes"});
+
+  // Another format version.
+  const std::string old_version = dir_->File("old_version.bag");
+  {
+    std::string bytes = ReadFile(good);
+    bytes.replace(9, 3, "1.2");
+    test::WriteText(old_version, bytes);
+  }
+  ExpectImportError(old_version, velodyne, {old_version, "bag format version 1.2"});
+
+  // The bag header's index_pos pointing into the middle of a record (rosbag_storage
+  // would read a record length from there).
+  const std::string bad_index = dir_->File("bad_index_pos.bag");
+  {
+    std::string bytes = ReadFile(good);
+    const size_t key = bytes.find("index_pos=");
+    ASSERT_NE(key, std::string::npos);
+    uint64_t index_pos = 0;
+    std::memcpy(&index_pos, bytes.data() + key + 10, 8);
+    index_pos += 3;
+    std::memcpy(bytes.data() + key + 10, &index_pos, 8);
+    test::WriteText(bad_index, bytes);
+  }
+  ExpectImportError(bad_index, velodyne,
+                    {bad_index, "record at byte 13: index_pos", "is not the start of a record"});
 
   // A corrupted lz4 chunk in the middle of a bag.
   const std::string corrupted = dir_->File("corrupted.bag");
