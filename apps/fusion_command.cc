@@ -24,11 +24,13 @@
 #include <cstring>
 #include <exception>
 #include <fstream>
+#include <functional>
 #include <nlohmann/json.hpp>
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "apps/commands.h"
@@ -190,6 +192,36 @@ void WriteSphericalNormalMapPng(const std::string& path,
   if (!cv::imwrite(path, image)) throw InputError(path, "", "cannot write the PNG image");
 }
 
+// Writes the outputs both modes share: trajectory.txt, surfels.ply, the two
+// normal-map PNGs (write_normal_maps, given the output folder), and
+// fusion_summary.json = `summary` plus the map's counts (stable surfels written,
+// surfels in the map, bytes) and the observation totals; then config.yaml and
+// commits the folder.
+void WriteFusionOutputs(const Trajectory& trajectory,
+                        const SurfelMap& map,
+                        const FuseStats& totals,
+                        const std::function<void(OutputFolder*)>& write_normal_maps,
+                        const OptionManager& options,
+                        nlohmann::json summary,
+                        OutputFolder* output) {
+  const size_t stable = map.NumStable();
+  WriteTum(output->File("trajectory.txt"), trajectory);
+  WriteSurfelsPly(output->File("surfels.ply"), map);
+  write_normal_maps(output);
+  summary["surfels"] = stable;
+  summary["surfels_in_map"] = map.size();
+  summary["output_min_confidence"] = map.options().output_min_confidence;
+  summary["bytes_per_surfel"] = SurfelMap::BytesPerSurfel();
+  summary["map_bytes"] = map.size() * SurfelMap::BytesPerSurfel();
+  summary["observations"] = {{"merged", totals.merged},
+                             {"added", totals.added},
+                             {"skipped", totals.skipped},
+                             {"surfels_removed", totals.removed}};
+  WriteFileAtomically(output->File("fusion_summary.json"), summary.dump(2) + "\n");
+  options.WriteConfig(output->File("config.yaml"));
+  output->Commit();
+}
+
 struct LidarFusionRun {
   std::string input_path, output_path, lio_path, pose_source, trajectory_path;
   int max_frames = 0;
@@ -336,19 +368,9 @@ int RunLidarFusion(const LidarFusionRun& run, const OptionManager& options) {
   LogStage("Writing outputs");
   const auto t_write = std::chrono::steady_clock::now();
   const SurfelMap& map = system.map();
-  const size_t stable = map.NumStable();
-  WriteTum(output.File("trajectory.txt"), trajectory);
-  WriteSurfelsPly(output.File("surfels.ply"), map);
-  WriteSphericalNormalMapPng(output.File("normals_first_keyframe.png"),
-                             map,
-                             poses.front() * imu_from_lidar,
-                             layout.projection);
-  WriteSphericalNormalMapPng(output.File("normals_last_keyframe.png"),
-                             map,
-                             poses.back() * imu_from_lidar,
-                             layout.projection);
   const double compute_ms = preprocess_ms + fuse_ms;
   const size_t scan_points = system.num_scan_points();
+  const size_t stable = map.NumStable();
   nlohmann::json summary;
   summary["mode"] = "lidar";
   summary["input_path"] = run.input_path;
@@ -365,17 +387,8 @@ int RunLidarFusion(const LidarFusionRun& run, const OptionManager& options) {
       {"rows_from_rings", !layout.row_of_ring.empty()}};
   summary["scan_points"] = scan_points;
   summary["input_points"] = system.num_input_points();
-  summary["surfels"] = stable;
-  summary["surfels_in_map"] = map.size();
-  summary["output_min_confidence"] = run.fusion.output_min_confidence;
   // Surfels written / scan points within the range limits over all keyframes.
   summary["compression_ratio"] = scan_points > 0 ? static_cast<double>(stable) / scan_points : 0.0;
-  summary["bytes_per_surfel"] = SurfelMap::BytesPerSurfel();
-  summary["map_bytes"] = map.size() * SurfelMap::BytesPerSurfel();
-  summary["observations"] = {{"merged", totals.merged},
-                             {"added", totals.added},
-                             {"skipped", totals.skipped},
-                             {"surfels_removed", totals.removed}};
   summary["stage_ms"] = {{"load", load_ms},
                          {"preprocess", preprocess_ms},
                          {"fusion", fuse_ms},
@@ -386,9 +399,23 @@ int RunLidarFusion(const LidarFusionRun& run, const OptionManager& options) {
                                       {"loop_wall", 1e3 * loop_s / num_frames}};
   summary["fusion_keyframes_per_s"] = compute_ms > 0 ? 1e3 * num_frames / compute_ms : 0.0;
   summary["wall_keyframes_per_s"] = loop_s > 0 ? num_frames / loop_s : 0.0;
-  WriteFileAtomically(output.File("fusion_summary.json"), summary.dump(2) + "\n");
-  options.WriteConfig(output.File("config.yaml"));
-  output.Commit();
+  WriteFusionOutputs(
+      trajectory,
+      map,
+      totals,
+      [&](OutputFolder* out) {
+        WriteSphericalNormalMapPng(out->File("normals_first_keyframe.png"),
+                                   map,
+                                   poses.front() * imu_from_lidar,
+                                   layout.projection);
+        WriteSphericalNormalMapPng(out->File("normals_last_keyframe.png"),
+                                   map,
+                                   poses.back() * imu_from_lidar,
+                                   layout.projection);
+      },
+      options,
+      std::move(summary),
+      &output);
   LogInfo(
       "fusion: {} keyframes (range image {}x{}), {} surfels written (confidence >= {}; {} in the "
       "map, {} bytes each; {:.2f} % of {} scan points), fusion {:.1f} keyframes/s ({:.1f} "
@@ -616,10 +643,6 @@ int RunFusion(int argc, char** argv) {
   const auto t_write = std::chrono::steady_clock::now();
   const SurfelMap& map = system.map();
   const size_t stable = map.NumStable();
-  WriteTum(output.File("trajectory.txt"), trajectory);
-  WriteSurfelsPly(output.File("surfels.ply"), map);
-  WriteNormalMapPng(output.File("normals_first_camera.png"), map, first_pose, intrinsics);
-  WriteNormalMapPng(output.File("normals_last_camera.png"), map, last_pose, intrinsics);
   const double compute_ms = preprocess_ms + track_ms + fuse_ms;
   const double pixels = static_cast<double>(num_frames) * intrinsics.width * intrinsics.height;
   nlohmann::json summary;
@@ -632,17 +655,8 @@ int RunFusion(int argc, char** argv) {
   summary["downsample_factor"] = factor;
   summary["input_pixels"] = static_cast<uint64_t>(pixels);
   summary["input_points"] = system.num_input_points();
-  summary["surfels"] = stable;
-  summary["surfels_in_map"] = map.size();
-  summary["output_min_confidence"] = fusion.output_min_confidence;
   // The write-up's compression ratio: surfels / (frames x downsampled pixels).
   summary["compression_ratio"] = pixels > 0 ? stable / pixels : 0.0;
-  summary["bytes_per_surfel"] = SurfelMap::BytesPerSurfel();
-  summary["map_bytes"] = map.size() * SurfelMap::BytesPerSurfel();
-  summary["observations"] = {{"merged", totals.merged},
-                             {"added", totals.added},
-                             {"skipped", totals.skipped},
-                             {"surfels_removed", totals.removed}};
   summary["frames_not_tracked"] = untracked;
   summary["frames_icp_not_converged"] = not_converged;
   summary["stage_ms"] = {{"load", load_ms},
@@ -657,9 +671,17 @@ int RunFusion(int argc, char** argv) {
                                    {"loop_wall", 1e3 * loop_s / num_frames}};
   summary["tracking_fusion_frames_per_s"] = compute_ms > 0 ? 1e3 * num_frames / compute_ms : 0.0;
   summary["wall_frames_per_s"] = loop_s > 0 ? num_frames / loop_s : 0.0;
-  WriteFileAtomically(output.File("fusion_summary.json"), summary.dump(2) + "\n");
-  options.WriteConfig(output.File("config.yaml"));
-  output.Commit();
+  WriteFusionOutputs(
+      trajectory,
+      map,
+      totals,
+      [&](OutputFolder* out) {
+        WriteNormalMapPng(out->File("normals_first_camera.png"), map, first_pose, intrinsics);
+        WriteNormalMapPng(out->File("normals_last_camera.png"), map, last_pose, intrinsics);
+      },
+      options,
+      std::move(summary),
+      &output);
   if (pose_source == "icp" && untracked > 0) {
     LogWarning(
         "fusion: {} of {} frames kept the initial guess of tracking (too few ICP "

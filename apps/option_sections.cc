@@ -197,6 +197,10 @@ void AddRgbdFusionOptions(OptionManager* options, RgbdFusionOptions* rgbd) {
                   "normals from depth slopes over this many pixels each side (1 = central "
                   "differences; wider = smoother normals of noisy depth)",
                   R::Between(1, 5));
+  options->AddDouble("Fusion.crease_rejection_sigma", &rgbd->crease_rejection_sigma,
+                     "drop the normals of pixels whose window spans a crease: off-plane score "
+                     "above this many RMS of the frame's (0 = keep them)",
+                     R::AtLeast(0));
   options->AddDouble("Fusion.max_incidence_deg", &rgbd->max_incidence_deg,
                      "drop pixels seen more obliquely (angle between normal and ray, deg)",
                      R::GreaterThan(0).AndAtMost(90));

@@ -98,6 +98,53 @@ bool Sample(const IntensityPyramid::Level& level,
   return true;
 }
 
+// Planarity score of each pixel with a normal n (0 elsewhere): the largest
+// off-plane second difference over the window, max_{k=1..r, axis} |n . (x(-k) +
+// x(+k) - 2 x)| / z^2 (1/m). A plane meets the rays of an image row (column) in a
+// line, so on a plane the score is zero up to depth noise, whose sigma grows ~z^2
+// for structured-light and time-of-flight sensors; a crease (two planes) within
+// the window makes it grow with the pixel footprint. Pixels whose score exceeds
+// sigma times the frame's clipped RMS score (5 rounds of clipping at that
+// threshold, in pixel order) lose their normal; the threshold is at least 1e-6 /m
+// (1 um at 1 m, float rounding of noise-free depth).
+void RejectCreases(double sigma, int r, VertexNormalMap* map) {
+  const int w = map->width, h = map->height;
+  std::vector<float> score(map->normals.size(), 0.f);
+  tbb::parallel_for(0, h, [&](int v) {
+    for (int u = 0; u < w; ++u) {
+      const size_t i = static_cast<size_t>(v) * w + u;
+      if (!map->Valid(i)) continue;
+      const Eigen::Vector3f& n = map->normals[i];
+      const Eigen::Vector3f x2 = 2.f * map->vertices[i];
+      float dev = 0.f;
+      for (int k = 1; k <= r; ++k) {
+        const size_t step_v = static_cast<size_t>(k) * w;
+        dev = std::max(dev, std::abs(n.dot(map->vertices[i - k] + map->vertices[i + k] - x2)));
+        dev = std::max(dev,
+                       std::abs(n.dot(map->vertices[i - step_v] + map->vertices[i + step_v] - x2)));
+      }
+      const float z = map->vertices[i].z();
+      score[i] = dev / (z * z);
+    }
+  });
+  double threshold = std::numeric_limits<double>::infinity();
+  for (int round = 0; round < 5; ++round) {
+    double sum_sq = 0;
+    size_t count = 0;
+    for (size_t i = 0; i < score.size(); ++i) {
+      if (!map->Valid(i) || score[i] > threshold) continue;
+      sum_sq += static_cast<double>(score[i]) * score[i];
+      ++count;
+    }
+    if (count == 0) return;
+    threshold = std::max(sigma * std::sqrt(sum_sq / count), 1e-6);
+  }
+  const float limit = static_cast<float>(threshold);
+  tbb::parallel_for(size_t{0}, score.size(), [&](size_t i) {
+    if (score[i] > limit) map->normals[i].setZero();
+  });
+}
+
 void CheckMap(const VertexNormalMap& map, const char* what) {
   const size_t n = static_cast<size_t>(std::max(map.width, 0)) * std::max(map.height, 0);
   if (map.width <= 0 || map.height <= 0 || map.vertices.size() != n || map.normals.size() != n) {
@@ -134,11 +181,13 @@ void ComputeVertexNormalMap(const std::vector<float>& depth_m,
                             double max_depth_m,
                             double max_depth_jump,
                             VertexNormalMap* out,
-                            int normal_window_px) {
+                            int normal_window_px,
+                            double crease_rejection_sigma) {
   const int w = K.width, h = K.height;
   THROW_CHECK_EQ(depth_m.size(), static_cast<size_t>(w) * static_cast<size_t>(h));
   THROW_CHECK(max_depth_jump > 0);
   THROW_CHECK(normal_window_px >= 1);
+  THROW_CHECK(crease_rejection_sigma >= 0);
   out->Resize(w, h);
   const float zmin = static_cast<float>(min_depth_m), zmax = static_cast<float>(max_depth_m);
   const float fx_inv = static_cast<float>(1.0 / K.fx), fy_inv = static_cast<float>(1.0 / K.fy);
@@ -180,24 +229,6 @@ void ComputeVertexNormalMap(const std::vector<float>& depth_m,
         dv += static_cast<float>(k) * (dn - up);
       }
       if (!ok) continue;
-      if (r > 1) {
-        // A crease (a room's edge) within the window: the outer half-window chords
-        // v(u) - v(u-r) and v(u+r) - v(u) turn by more than 30 deg; that axis falls
-        // back to central differences, so a normal never mixes two planes.
-        constexpr float kMinCos = 0.8660254f;  // cos 30 deg
-        const size_t step_v = static_cast<size_t>(r) * w;
-        const Eigen::Vector3f& x = out->vertices[i];
-        const auto crease = [&](const Eigen::Vector3f& a, const Eigen::Vector3f& b) {
-          const Eigen::Vector3f da = x - a, db = b - x;
-          return da.dot(db) < kMinCos * da.norm() * db.norm();
-        };
-        if (crease(out->vertices[i - r], out->vertices[i + r])) {
-          du = out->vertices[i + 1] - out->vertices[i - 1];
-        }
-        if (crease(out->vertices[i - step_v], out->vertices[i + step_v])) {
-          dv = out->vertices[i + w] - out->vertices[i - w];
-        }
-      }
       Eigen::Vector3f c = du.cross(dv);
       const float norm = c.norm();
       if (!(norm > 0)) continue;
@@ -206,6 +237,7 @@ void ComputeVertexNormalMap(const std::vector<float>& depth_m,
       n = c;
     }
   });
+  if (crease_rejection_sigma > 0) RejectCreases(crease_rejection_sigma, r, out);
 }
 
 bool ProjectiveIcpOptions::Check() const {

@@ -78,19 +78,25 @@ struct VertexNormalMap {
 //   n = d_u x d_v,  d_u = sum_{k=1..r} k (v(u+k) - v(u-k)),  d_v likewise,
 // oriented towards the camera (r = 1: central differences). Depth noise sigma gives
 // a normal noise ~ sigma / (pixel footprint r^1.5): a wider window smooths the
-// normals of noisy depth. Where the outer chords v(u) - v(u-r) and v(u+r) - v(u)
-// turn by more than 30 deg (a crease) that axis uses central differences. A pixel
-// gets a normal only when its 4r neighbours are
+// normals of noisy depth. A pixel gets a normal only when its 4r neighbours are
 // valid and the k-th is within k max_depth_jump (fraction of its depth, > 0) of its
 // depth (no normals across depth discontinuities). Depths outside [min_depth_m,
-// max_depth_m] are invalid. Reuses out's storage.
+// max_depth_m] are invalid.
+// Creases (crease_rejection_sigma > 0): a normal whose window spans two planes (a
+// room's edge) mixes them and biases point-to-plane residuals in the motion's
+// direction. On a plane the points of a row (column) are collinear, so a pixel
+// whose window points leave the line along n, max_{k,axis} |n . (v(-k) + v(+k) -
+// 2 v)| / z^2, by more than crease_rejection_sigma times the frame's RMS of that
+// score (clipped at the same multiple, so depth noise sets the scale and the
+// creases themselves do not) loses its normal. Reuses out's storage.
 void ComputeVertexNormalMap(const std::vector<float>& depth_m,
                             const PinholeIntrinsics& intrinsics,
                             double min_depth_m,
                             double max_depth_m,
                             double max_depth_jump,
                             VertexNormalMap* out,
-                            int normal_window_px = 1);
+                            int normal_window_px = 1,
+                            double crease_rejection_sigma = 0);
 
 // Intensity images of one frame for the photometric term, all on the frame's own
 // pixel grid: level l is the intensity in [0, 1] blurred by a Gaussian of sigma

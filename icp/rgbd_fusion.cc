@@ -27,6 +27,7 @@ bool RgbdFusionOptions::Check() const {
   CHECK_OPTION_GT(max_depth_m, min_depth_m);
   CHECK_OPTION_GT(max_depth_jump, 0.0);
   CHECK_OPTION_MSG(normal_window_px, normal_window_px >= 1 && normal_window_px <= 5, "in [1, 5]");
+  CHECK_OPTION_GE(crease_rejection_sigma, 0.0);
   CHECK_OPTION_MSG(
       max_incidence_deg, max_incidence_deg > 0 && max_incidence_deg <= 90, "in (0, 90]");
   CHECK_OPTION_GT(bilateral_sigma_px, 0.0);
@@ -139,7 +140,8 @@ void RgbdFusion::Preprocess(const std::vector<float>& depth_m, const std::vector
                          options_.max_depth_m,
                          options_.max_depth_jump,
                          &frame_.map,
-                         options_.normal_window_px);
+                         options_.normal_window_px,
+                         options_.crease_rejection_sigma);
   // Oblique observations: |n . q| / |q| = cos of the angle between normal and ray.
   const float min_cos = static_cast<float>(std::cos(options_.max_incidence_deg * M_PI / 180.0));
   tbb::parallel_for(size_t{0}, n, [&](size_t i) {
@@ -205,14 +207,13 @@ RgbdFrameResult RgbdFusion::AddFrame(const std::vector<float>& depth_m,
   t0 = std::chrono::steady_clock::now();
   if (!world_from_camera || num_frames_ == 0) {
     // The next frame's tracking target; only needed while tracking.
+    // One render gives the geometric target and the index map of the colour target.
+    std::vector<uint32_t>& index = model_index_;
     map_.RenderVertexNormalMap(
-        result.world_from_camera, intrinsics_, 0.0, options_.model_splat_px, &model_);
+        result.world_from_camera, intrinsics_, 0.0, options_.model_splat_px, &model_, &index);
     if (!intensity_pyramid_.empty() && !frame_.colors.empty()) {
       // The photometric target: the model's colour rendered at this pose (world-anchored
       // texture), this frame's intensity where no surfel is seen.
-      std::vector<uint32_t> index;
-      map_.RenderIndexMap(
-          result.world_from_camera, intrinsics_, 0.0, options_.model_splat_px, &index);
       const std::vector<Surfel>& surfels = map_.surfels();
       tbb::parallel_for(size_t{0}, index.size(), [&](size_t i) {
         if (index[i] == SurfelMap::kNoSurfel) return;

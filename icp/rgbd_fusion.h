@@ -43,10 +43,14 @@ struct RgbdFusionOptions {
   // Normals from slopes over this many pixels each side (ComputeVertexNormalMap;
   // 1 = central differences). At 320x240 central differences of Kinect-like depth
   // scatter normals by tens of degrees (speckled normal maps); 2 cuts that noise
-  // 2.2x and drops normals within 2 pixels of a depth discontinuity, but on
-  // noise-free depth it tracks a box room with ~1 mm instead of ~0.1 mm error
-  // after 20 frames (surfel_map_test), so it is not the default.
-  int normal_window_px = 1;
+  // 2.2x and drops normals within 2 pixels of a depth discontinuity.
+  int normal_window_px = 2;
+  // Pixels whose normal window spans a crease lose their normal when their
+  // off-plane score exceeds this many clipped RMS of the frame's scores
+  // (ComputeVertexNormalMap; 0 = keep them). Mixed normals at a room's edges bias
+  // tracking along the motion: without it a noise-free box room tracks with ~1 mm
+  // error after 20 frames, with it ~1 um (surfel_map_test).
+  double crease_rejection_sigma = 3;
   double max_incidence_deg = 80.0;        // drop pixels seen more obliquely (normal vs ray, deg)
   bool bilateral_filter = false;          // bilateral filter of the (downsampled) depth
   double bilateral_sigma_px = 1.5;        // spatial sigma (pixels of the downsampled image)
@@ -103,7 +107,8 @@ class RgbdFusion {
   FusionFrame frame_;
   std::vector<float> depth_;
   std::vector<float> filtered_;
-  VertexNormalMap model_;  // the model rendered at the previous pose
+  VertexNormalMap model_;              // the model rendered at the previous pose
+  std::vector<uint32_t> model_index_;  // its index map (SurfelMap::RenderIndexMap)
   std::vector<float> intensity_;
   IntensityPyramid intensity_pyramid_, previous_intensity_pyramid_;
   SE3 previous_, previous_motion_;

@@ -157,8 +157,10 @@ void SurfelMap::RenderVertexNormalMap(const SE3& world_from_camera,
                                       const PinholeIntrinsics& K,
                                       double min_confidence,
                                       int splat,
-                                      VertexNormalMap* out) const {
-  std::vector<uint32_t> index_map;
+                                      VertexNormalMap* out,
+                                      std::vector<uint32_t>* index_map_out) const {
+  std::vector<uint32_t> temporary;
+  std::vector<uint32_t>& index_map = index_map_out != nullptr ? *index_map_out : temporary;
   RenderIndexMap(world_from_camera, K, min_confidence, splat, &index_map);
   out->Resize(K.width, K.height);
   const SE3 camera_from_world = world_from_camera.Inverse();
@@ -310,22 +312,37 @@ void SurfelMap::RenderIndexMap(const SE3& world_from_sensor,
       });
 }
 
-FuseStats SurfelMap::Fuse(const FusionFrame& frame, const SE3& world_from_camera, int frame_index) {
-  const PinholeIntrinsics& K = frame.intrinsics;
-  const size_t num_pixels = static_cast<size_t>(std::max(K.width, 0)) * std::max(K.height, 0);
-  if (num_pixels == 0 || frame.map.width != K.width || frame.map.height != K.height ||
-      frame.map.vertices.size() != num_pixels || frame.map.normals.size() != num_pixels ||
-      (!frame.colors.empty() && frame.colors.size() != num_pixels)) {
+namespace {
+
+// Throws InputError (what, frame `frame_index`) unless the map has width x height
+// vertices and normals and `colors` is empty or has one per pixel.
+void CheckFuseInput(const char* what,
+                    int frame_index,
+                    int width,
+                    int height,
+                    const VertexNormalMap& map,
+                    const std::vector<std::array<uint8_t, 3>>& colors) {
+  const size_t num_pixels = static_cast<size_t>(std::max(width, 0)) * std::max(height, 0);
+  if (num_pixels == 0 || map.width != width || map.height != height ||
+      map.vertices.size() != num_pixels || map.normals.size() != num_pixels ||
+      (!colors.empty() && colors.size() != num_pixels)) {
     throw InputError(
-        "fusion frame",
+        what,
         fmt::format("frame {}", frame_index),
         fmt::format("expected {}x{} vertices, normals and colours, found {}, {} and {}",
-                    K.width,
-                    K.height,
-                    frame.map.vertices.size(),
-                    frame.map.normals.size(),
-                    frame.colors.size()));
+                    width,
+                    height,
+                    map.vertices.size(),
+                    map.normals.size(),
+                    colors.size()));
   }
+}
+
+}  // namespace
+
+FuseStats SurfelMap::Fuse(const FusionFrame& frame, const SE3& world_from_camera, int frame_index) {
+  const PinholeIntrinsics& K = frame.intrinsics;
+  CheckFuseInput("fusion frame", frame_index, K.width, K.height, frame.map, frame.colors);
   const PinholeFuseCamera camera{K, static_cast<float>(0.5 * (K.fx + K.fy))};
   return FuseImpl(frame.map, frame.colors, camera, world_from_camera, frame_index);
 }
@@ -335,20 +352,8 @@ FuseStats SurfelMap::Fuse(const VertexNormalMap& map,
                           const SphericalProjection& projection,
                           const SE3& world_from_sensor,
                           int frame_index) {
-  const size_t num_pixels = projection.num_pixels();
-  if (num_pixels == 0 || map.width != projection.width() || map.height != projection.height() ||
-      map.vertices.size() != num_pixels || map.normals.size() != num_pixels ||
-      (!colors.empty() && colors.size() != num_pixels)) {
-    throw InputError(
-        "fusion range image",
-        fmt::format("frame {}", frame_index),
-        fmt::format("expected {}x{} vertices, normals and colours, found {}, {} and {}",
-                    projection.width(),
-                    projection.height(),
-                    map.vertices.size(),
-                    map.normals.size(),
-                    colors.size()));
-  }
+  CheckFuseInput(
+      "fusion range image", frame_index, projection.width(), projection.height(), map, colors);
   const double da = projection.azimuth_step_rad(), de = projection.elevation_step_rad();
   const SphericalFuseCamera camera{projection, static_cast<float>(0.5 * std::hypot(da, de))};
   return FuseImpl(map, colors, camera, world_from_sensor, frame_index);

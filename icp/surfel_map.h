@@ -118,11 +118,14 @@ class SurfelMap {
   // (the target of RegisterProjective), from RenderIndexMap with `splat`. A pixel's
   // vertex is where its ray meets the plane of its surfel (within 4 radii of the
   // centre; else the centre): like a measured vertex it lies on the pixel's ray.
+  // index_map: where the index map is rendered (it stays there, e.g. for the
+  // model's colour); null = a temporary.
   void RenderVertexNormalMap(const SE3& world_from_camera,
                              const PinholeIntrinsics& intrinsics,
                              double min_confidence,
                              int splat,
-                             VertexNormalMap* out) const;
+                             VertexNormalMap* out,
+                             std::vector<uint32_t>* index_map = nullptr) const;
 
   // Steps 1-5 for a range image of a spinning LiDAR at world_from_sensor: `map` has
   // projection's size, vertices and normals in the sensor frame; colors is empty or

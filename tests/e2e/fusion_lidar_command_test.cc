@@ -16,7 +16,7 @@
 
 #include "core/file_utils.h"
 #include "core/geometry.h"
-#include "tests/common/point_triangle_distance.h"
+#include "tests/common/fusion_outputs.h"
 #include "tests/common/test_utils.h"
 
 namespace lisfm {
@@ -25,20 +25,6 @@ namespace {
 using test::LisfmBinary;
 using test::RunCommand;
 using test::TempDir;
-
-// The binary payload of a little-endian PLY after its header, and the vertex count.
-std::string PlyPayload(const std::string& path, size_t* num_vertices) {
-  const std::string data = ReadFile(path);
-  const size_t end = data.find("end_header\n");
-  EXPECT_NE(end, std::string::npos) << path;
-  std::istringstream header(data.substr(0, end));
-  std::string line;
-  *num_vertices = 0;
-  while (std::getline(header, line)) {
-    if (line.rfind("element vertex ", 0) == 0) *num_vertices = std::stoul(line.substr(15));
-  }
-  return data.substr(end + 11);
-}
 
 class FusionLidarCommand : public ::testing::Test {
  protected:
@@ -68,13 +54,7 @@ class FusionLidarCommand : public ::testing::Test {
                           int code,
                           const std::string& message,
                           const std::string& output_path) {
-    std::string out;
-    EXPECT_EQ(RunCommand(Fusion(args) + " --output_path " + output_path, &out), code) << out;
-    EXPECT_NE(out.find(message), std::string::npos) << out;
-    EXPECT_FALSE(FileExists(output_path) || DirExists(output_path)) << output_path;
-    std::string ls;
-    RunCommand("ls -d " + output_path + ".tmp-* 2>/dev/null | wc -l", &ls);
-    EXPECT_EQ(Trim(ls), "0") << "a temporary output folder was left behind";
+    test::ExpectCommandFails(Fusion(args), code, message, output_path);
   }
   static TempDir* dir_;
 };
@@ -122,30 +102,9 @@ TEST_F(FusionLidarCommand, GroundTruthPosesPutSurfelsOnTheScene) {
   }
   EXPECT_EQ(poses, keyframes);
 
-  size_t num_vertices = 0;
-  const std::string mesh = PlyPayload(Seq() + "/scene.ply", &num_vertices);
-  ASSERT_GE(mesh.size(), num_vertices * 12);
-  std::vector<float> v(num_vertices * 3);
-  std::memcpy(v.data(), mesh.data(), num_vertices * 12);
-  size_t num_surfels = 0;
-  const std::string surfels = PlyPayload(out_dir + "/surfels.ply", &num_surfels);
-  ASSERT_EQ(surfels.size(), num_surfels * 35);
-  ASSERT_GT(num_surfels, 20000u);
-  std::vector<double> distances;
-  for (size_t i = 0; i < num_surfels; i += 53) {
-    float p[3];
-    std::memcpy(p, surfels.data() + 35 * i, 12);
-    const Vec3 x(p[0], p[1], p[2]);
-    double best = 1e9;
-    for (size_t k = 0; k + 2 < num_vertices; k += 3) {
-      const Vec3 a(v[3 * k], v[3 * k + 1], v[3 * k + 2]);
-      const Vec3 b(v[3 * k + 3], v[3 * k + 4], v[3 * k + 5]);
-      const Vec3 c(v[3 * k + 6], v[3 * k + 7], v[3 * k + 8]);
-      best = std::min(best, test::PointTriangleDistance(x, a, b, c));
-    }
-    distances.push_back(best);
-  }
-  std::sort(distances.begin(), distances.end());
+  const std::vector<double> distances =
+      test::SurfelDistancesToScene(out_dir + "/surfels.ply", Seq() + "/scene.ply", 53, 20000);
+  ASSERT_FALSE(distances.empty());
   const double median = distances[distances.size() / 2];
   EXPECT_LT(median, 0.01);
   RecordProperty("median_surface_distance_m", std::to_string(median));
