@@ -574,7 +574,7 @@ class Pipeline {
   std::string start_stage, end_stage, scripts_path = LISFM_SOURCE_DIR "/scripts";
   std::string python_path = "/usr/bin/python3";
   bool overwrite = false, compare_stock = false, compare_exhaustive = false;
-  int mpi_ranks = 0;  // > 0: pose_slam and database_importer under mpirun -np mpi_ranks
+  int mpi_ranks = 0;  // > 0: pose_slam, database_importer, global_mapper under mpirun -np N
 
   int Run(int argc, char** argv);
 
@@ -711,7 +711,7 @@ void Pipeline::RunStage(StageState* stage) {
     options.AppendTo(&a);
     Exec(stage, a);
   } else if (name == "global_mapper") {
-    std::vector<std::string> a = Lisfm("global_mapper");
+    std::vector<std::string> a = MpiLisfm("global_mapper");
     a.insert(a.end(),
              {"--database_path",
               JoinPaths(Dir("matches_importer"), "database.db"),
@@ -1280,9 +1280,9 @@ int Pipeline::Run(int argc, char** argv) {
   options.AddString("python_path", &python_path, "python3 with matplotlib, for the plots");
   options.AddInt("mpi_ranks",
                  &mpi_ranks,
-                 "run pose_slam and database_importer under `mpirun --oversubscribe --bind-to "
-                 "none -np N` "
-                 "(0: one process); outputs are the same for any N",
+                 "run pose_slam, database_importer and global_mapper under `mpirun "
+                 "--oversubscribe --bind-to none -np N` (0: one process); outputs are the same "
+                 "for any N",
                  OptionRange::AtLeast(0));
   if (!options.Parse(static_cast<int>(args.size()), args.data())) return 0;
 
