@@ -127,7 +127,7 @@ for line in open(os.path.join(work, "times.txt")):
     gm = json.load(open(os.path.join(work, f"gm_{name}", "global_mapper_summary.json")))
     runs[-1].update(gm_wall=float(t3) - float(t2), two_view=gm["view_graph"]["seconds"],
                     gm_serial=gm["total_seconds"] - gm["view_graph"]["seconds"],
-                    gm_pairs=gm["view_graph"]["num_pairs_in_database"])
+                    gm_pairs=gm["view_graph"]["pairs_in_database"])
 ref = "ps_1x2", "db_1x2"
 ps_files = ["trajectory.txt", "keyframes.txt", "constraints.txt", "keyframe_covariances.txt", "map.pcd"]
 db_files = ["database.db", "image_list.txt", "pairs.txt", "rig.yaml", "constraints.txt", "covisibility.csv"]
