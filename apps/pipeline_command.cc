@@ -593,7 +593,15 @@ class Pipeline {
   // changes the last digits of pose_slam's covariances.
   std::vector<std::string> MpiLisfm(const std::string& command) const {
     if (mpi_ranks <= 0) return Lisfm(command);
-    return {"mpirun",
+    // The children start without a PATH search (posix_spawn).
+    const std::string mpirun = FindExecutable("mpirun");
+    if (mpirun.empty()) {
+      throw InputError(
+          fmt::format("--mpi_ranks {}: mpirun is not on PATH (install Open MPI: "
+                      "apt-get install openmpi-bin)",
+                      mpi_ranks));
+    }
+    return {mpirun,
             "--oversubscribe",
             "--bind-to",
             "none",
