@@ -1,6 +1,7 @@
 // `lisfm global_mapper`: global SfM on a COLMAP database (colmap_ext/global_mapper.h).
 #include <chrono>
 #include <memory>
+#include <optional>
 #include <string>
 
 #include "apps/commands.h"
@@ -15,8 +16,10 @@
 #include "core/io/lidar_constraints_io.h"
 #include "core/io/rig_io.h"
 #include "core/logging.h"
+#include "core/mpi/mpi_world.h"
 #include "core/options.h"
 #include "core/rig.h"
+#include "core/work_list.h"
 
 namespace lisfm {
 
@@ -54,7 +57,9 @@ int RunGlobalMapper(int argc, char** argv) {
   mapper.bundle_adjustment.num_threads = num_threads;
   options.ThrowUnlessValid(mapper.Check());
 
-  OutputFolder output(output_path, overwrite);  // checked before the work
+  if (!mpi::IsRoot()) SetLogLevel(LogLevel::kError);                 // rank 0 reports
+  std::optional<OutputFolder> output_folder;                         // rank 0 writes
+  if (mpi::IsRoot()) output_folder.emplace(output_path, overwrite);  // checked before the work
 
   const auto start = std::chrono::steady_clock::now();
   CheckFileExists(database_path, "database");
@@ -70,8 +75,17 @@ int RunGlobalMapper(int argc, char** argv) {
 
   LogStage("global_mapper: " + database_path);
   const colmap::Database database(database_path, colmap::Database::OpenMode::kReadOnly);
+  // Under mpirun the view graph's pairs are split across the ranks; rank 0
+  // gets every pair's result and continues alone.
   colmap::GlobalMapperResult result =
-      colmap::RunGlobalMapper(database, rig.get(), constraints, image_path, mapper);
+      colmap::RunGlobalMapper(database,
+                              rig.get(),
+                              constraints,
+                              image_path,
+                              mapper,
+                              mpi::Active() ? WorkListRunner(mpi::RunWorkList) : WorkListRunner());
+  if (result.share_only || !mpi::IsRoot()) return 0;  // this rank's pairs went to rank 0
+  OutputFolder& output = *output_folder;
   const double mapping_s =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 

@@ -100,10 +100,11 @@ int Main(int argc, char** argv) {
     if (c.name == name) {
       // Under `mpirun -np N` (N > 1) only the commands that split their work
       // across the ranks run; any other would run N times into one output.
-      if (mpi::WorldSize() > 1 && name != "pose_slam" && name != "database_importer") {
+      if (mpi::WorldSize() > 1 && name != "pose_slam" && name != "database_importer" &&
+          name != "global_mapper") {
         throw UsageError("lisfm " + name +
                          " does not run under mpirun with more than one process (only "
-                         "pose_slam and database_importer do)");
+                         "pose_slam, database_importer and global_mapper do)");
       }
       std::string arg0 = "lisfm " + name;
       std::vector<char*> args;

@@ -578,7 +578,7 @@ class Pipeline {
   std::string start_stage, end_stage, scripts_path = LISFM_SOURCE_DIR "/scripts";
   std::string python_path = "/usr/bin/python3";
   bool overwrite = false, compare_stock = false, compare_exhaustive = false;
-  int mpi_ranks = 0;  // > 0: pose_slam and database_importer under mpirun -np mpi_ranks
+  int mpi_ranks = 0;  // > 0: pose_slam, database_importer, global_mapper under mpirun -np N
 
   int Run(int argc, char** argv);
 
@@ -597,7 +597,15 @@ class Pipeline {
   // changes the last digits of pose_slam's covariances.
   std::vector<std::string> MpiLisfm(const std::string& command) const {
     if (mpi_ranks <= 0) return Lisfm(command);
-    return {"mpirun",
+    // The children start without a PATH search (posix_spawn).
+    const std::string mpirun = FindExecutable("mpirun");
+    if (mpirun.empty()) {
+      throw InputError(
+          fmt::format("--mpi_ranks {}: mpirun is not on PATH (install Open MPI: "
+                      "apt-get install openmpi-bin)",
+                      mpi_ranks));
+    }
+    return {mpirun,
             "--oversubscribe",
             "--bind-to",
             "none",
@@ -715,7 +723,7 @@ void Pipeline::RunStage(StageState* stage) {
     options.AppendTo(&a);
     Exec(stage, a);
   } else if (name == "global_mapper") {
-    std::vector<std::string> a = Lisfm("global_mapper");
+    std::vector<std::string> a = MpiLisfm("global_mapper");
     a.insert(a.end(),
              {"--database_path",
               JoinPaths(Dir("matches_importer"), "database.db"),
@@ -1284,9 +1292,9 @@ int Pipeline::Run(int argc, char** argv) {
   options.AddString("python_path", &python_path, "python3 with matplotlib, for the plots");
   options.AddInt("mpi_ranks",
                  &mpi_ranks,
-                 "run pose_slam and database_importer under `mpirun --oversubscribe --bind-to "
-                 "none -np N` "
-                 "(0: one process); outputs are the same for any N",
+                 "run pose_slam, database_importer and global_mapper under `mpirun "
+                 "--oversubscribe --bind-to none -np N` (0: one process); outputs are the same "
+                 "for any N",
                  OptionRange::AtLeast(0));
   if (!options.Parse(static_cast<int>(args.size()), args.data())) return 0;
 

@@ -208,6 +208,10 @@ Database::Database(const std::string& path, OpenMode mode) : path_(path) {
     db_ = nullptr;
     Fail("", "cannot open database: " + message);
   }
+  // Processes that open one database at once (the ranks of an mpirun) can find
+  // it locked for a moment (a WAL database's shared-memory setup and the last
+  // closer's checkpoint): wait up to 60 s for the lock instead of failing.
+  sqlite3_busy_timeout(db_, 60000);
   try {
     if (query_only) Exec("PRAGMA query_only = ON");
     InspectSchema();

@@ -40,6 +40,18 @@ struct PoseBlock {
   }
 };
 
+// A pose block inside a shared buffer, laid out as PoseBlock (q = x, y, z, w).
+struct PoseSlot {
+  struct Span {
+    double* p;
+    double* data() const { return p; }
+  };
+  Span q, t;
+  SE3 ToSE3() const {
+    return SE3(Quat(q.p[3], q.p[0], q.p[1], q.p[2]).normalized(), Vec3(t.p[0], t.p[1], t.p[2]));
+  }
+};
+
 // One observation of a track in a registered image.
 struct Observation {
   size_t track_idx;
@@ -344,20 +356,52 @@ void SolveWithCeres(const BundleAdjustmentOptions& options,
                     std::chrono::steady_clock::time_point start,
                     MapperState* state,
                     BundleAdjustmentStats* stats) {
-  std::map<frame_t, PoseBlock> frame_blocks;
+  // Ceres orders the parameter blocks of a ParameterBlockOrdering group by
+  // address: every block other than the points (frame poses, cam_from_rig,
+  // rig_from_prior, intrinsics) lives in one buffer, in creation order, so
+  // that the elimination order does not depend on where the heap put
+  // separately allocated blocks (which other threads' allocations change).
+  // The points are the elements of state->tracks (ascending addresses).
+  size_t buffer_size = 7 * (spec.frame_set->size() + spec.camera_set->size() + 1);
+  for (camera_t camera_id : *spec.camera_set) {
+    buffer_size += state->cameras.at(camera_id).params.size();
+  }
+  std::vector<double> buffer(buffer_size);
+  size_t buffer_used = 0;
+  const auto take = [&](size_t n) {
+    THROW_CHECK_LE(buffer_used + n, buffer.size());
+    double* p = buffer.data() + buffer_used;
+    buffer_used += n;
+    return p;
+  };
+  const auto make_pose = [&](const SE3& pose) {
+    const PoseBlock block(pose);
+    PoseSlot slot{{take(4)}, {take(3)}};
+    std::copy(block.q.begin(), block.q.end(), slot.q.data());
+    std::copy(block.t.begin(), block.t.end(), slot.t.data());
+    return slot;
+  };
+  std::map<frame_t, PoseSlot> frame_blocks;
   for (frame_t frame_id : *spec.frame_set) {
-    frame_blocks.emplace(frame_id, PoseBlock(state->frames.at(frame_id).rig_from_world));
+    frame_blocks.emplace(frame_id, make_pose(state->frames.at(frame_id).rig_from_world));
   }
   const bool refine_rig = state->has_rig && options.refine_cam_from_rig;
   const camera_t reference_camera = *spec.camera_set->begin();
-  PoseBlock prior_frame_block(state->rig_from_prior);
-  std::map<camera_t, PoseBlock> rig_blocks;
+  PoseSlot prior_frame_block = make_pose(state->rig_from_prior);
+  std::map<camera_t, PoseSlot> rig_blocks;
   if (refine_rig) {
     for (camera_t camera_id : *spec.camera_set) {
       if (camera_id == reference_camera)
         continue;  // stays constant (functor member)
-      rig_blocks.emplace(camera_id, PoseBlock(CamFromRig(*state, camera_id)));
+      rig_blocks.emplace(camera_id, make_pose(CamFromRig(*state, camera_id)));
     }
+  }
+  std::map<camera_t, double*> camera_params;
+  for (camera_t camera_id : *spec.camera_set) {
+    const std::vector<double>& params = state->cameras.at(camera_id).params;
+    double* p = take(params.size());
+    std::copy(params.begin(), params.end(), p);
+    camera_params.emplace(camera_id, p);
   }
 
   ceres::Problem::Options problem_options;
@@ -370,20 +414,27 @@ void SolveWithCeres(const BundleAdjustmentOptions& options,
 
   for (const Observation& obs : *spec.observations) {
     const SfmImage& image = state->images.at(obs.image_id);
-    Camera& camera = state->cameras.at(image.camera_id);
-    PoseBlock& frame = frame_blocks.at(image.frame_id);
+    double* intrinsics = camera_params.at(image.camera_id);
+    const Camera& camera = state->cameras.at(image.camera_id);
+    PoseSlot& frame = frame_blocks.at(image.frame_id);
     Track& track = state->tracks[obs.track_idx];
     const Vec2& observed = image.keypoints[obs.point2D_idx];
     const bool refine_this_rig = refine_rig && image.camera_id != reference_camera;
     ceres::CostFunction* cost = MakeReprojectionCost(
         camera.model_id, observed, CamFromRig(*state, image.camera_id), refine_this_rig);
     if (refine_this_rig) {
-      PoseBlock& rig = rig_blocks.at(image.camera_id);
-      problem.AddResidualBlock(cost, loss.get(), rig.q.data(), rig.t.data(), frame.q.data(),
-                               frame.t.data(), track.xyz.data(), camera.params.data());
+      PoseSlot& rig = rig_blocks.at(image.camera_id);
+      problem.AddResidualBlock(cost,
+                               loss.get(),
+                               rig.q.data(),
+                               rig.t.data(),
+                               frame.q.data(),
+                               frame.t.data(),
+                               track.xyz.data(),
+                               intrinsics);
     } else {
-      problem.AddResidualBlock(cost, loss.get(), frame.q.data(), frame.t.data(),
-                               track.xyz.data(), camera.params.data());
+      problem.AddResidualBlock(
+          cost, loss.get(), frame.q.data(), frame.t.data(), track.xyz.data(), intrinsics);
     }
   }
   for (auto& [frame_id, block] : frame_blocks) {
@@ -394,20 +445,20 @@ void SolveWithCeres(const BundleAdjustmentOptions& options,
   }
   // Intrinsics: hold the groups that are not refined.
   for (camera_t camera_id : *spec.camera_set) {
-    Camera& camera = state->cameras.at(camera_id);
+    double* intrinsics = camera_params.at(camera_id);
     const std::vector<int>& constant = spec.constant_params.at(camera_id);
-    const int num_params = static_cast<int>(camera.params.size());
+    const int num_params = static_cast<int>(state->cameras.at(camera_id).params.size());
     if (static_cast<int>(constant.size()) == num_params) {
-      problem.SetParameterBlockConstant(camera.params.data());
+      problem.SetParameterBlockConstant(intrinsics);
     } else if (!constant.empty()) {
       owned_manifolds.push_back(std::make_unique<ceres::SubsetManifold>(num_params, constant));
-      problem.SetManifold(camera.params.data(), owned_manifolds.back().get());
+      problem.SetManifold(intrinsics, owned_manifolds.back().get());
     }
   }
   double* x_q = prior_frame_block.q.data();
   double* x_t = prior_frame_block.t.data();
   for (const PositionPrior& prior : spec.position_priors) {
-    PoseBlock& block = frame_blocks.at(prior.frame_id);
+    PoseSlot& block = frame_blocks.at(prior.frame_id);
     if (spec.prior_frame) {
       problem.AddResidualBlock(
           PriorFramePositionPriorFunctor::Create(prior.position, prior.sqrt_information),
@@ -423,7 +474,7 @@ void SolveWithCeres(const BundleAdjustmentOptions& options,
     }
   }
   for (const RotationPrior& prior : spec.rotation_priors) {
-    PoseBlock& block = frame_blocks.at(prior.frame_id);
+    PoseSlot& block = frame_blocks.at(prior.frame_id);
     if (spec.prior_frame) {
       problem.AddResidualBlock(
           PriorFrameRotationPriorFunctor::Create(prior.rig_from_world, prior.sigma),
@@ -436,8 +487,8 @@ void SolveWithCeres(const BundleAdjustmentOptions& options,
     }
   }
   for (const LidarTerm& term : spec.lidar_terms) {
-    PoseBlock& b1 = frame_blocks.at(term.frame_id1);
-    PoseBlock& b2 = frame_blocks.at(term.frame_id2);
+    PoseSlot& b1 = frame_blocks.at(term.frame_id1);
+    PoseSlot& b2 = frame_blocks.at(term.frame_id2);
     if (spec.prior_frame) {
       problem.AddResidualBlock(
           PriorFrameRelativePoseFunctor::Create(term.rig1_from_rig2, term.sqrt_information),
@@ -480,12 +531,12 @@ void SolveWithCeres(const BundleAdjustmentOptions& options,
     }
   } else {
     if (spec.first_frame_fixed) {
-      PoseBlock& first = frame_blocks.begin()->second;
+      PoseSlot& first = frame_blocks.begin()->second;
       problem.SetParameterBlockConstant(first.q.data());
       problem.SetParameterBlockConstant(first.t.data());
     }
     if (spec.scale_coordinate >= 0) {
-      PoseBlock& far = frame_blocks.at(spec.scale_frame);
+      PoseSlot& far = frame_blocks.at(spec.scale_frame);
       owned_manifolds.push_back(std::make_unique<ceres::SubsetManifold>(
           3, std::vector<int>{spec.scale_coordinate}));
       problem.SetManifold(far.t.data(), owned_manifolds.back().get());
@@ -518,7 +569,10 @@ void SolveWithCeres(const BundleAdjustmentOptions& options,
   solver_options.function_tolerance = options.function_tolerance;
   solver_options.gradient_tolerance = options.gradient_tolerance;
   solver_options.parameter_tolerance = options.parameter_tolerance;
-  solver_options.num_threads = NumThreads(options);
+  // One thread: Ceres 2.1's multi-threaded Schur elimination and cost sum
+  // add the contributions of the points in thread-timing order, so their last
+  // bits (and with them the model) would differ from run to run.
+  solver_options.num_threads = 1;
   solver_options.minimizer_progress_to_stdout = options.verbose;
   solver_options.logging_type = options.verbose ? ceres::PER_MINIMIZER_ITERATION : ceres::SILENT;
 
@@ -540,7 +594,11 @@ void SolveWithCeres(const BundleAdjustmentOptions& options,
                        std::string(": ") + summary.message;
   stats->linear_solver = ceres::LinearSolverTypeToString(summary.linear_solver_type_used);
 
-  // Write back (camera params and points were optimised in place).
+  // Write back (the points were optimised in place).
+  for (const auto& [camera_id, p] : camera_params) {
+    std::vector<double>& params = state->cameras.at(camera_id).params;
+    std::copy(p, p + params.size(), params.begin());
+  }
   for (const auto& [frame_id, block] : frame_blocks) {
     state->frames.at(frame_id).rig_from_world = block.ToSE3();
   }

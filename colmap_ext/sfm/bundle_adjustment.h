@@ -58,7 +58,10 @@
 //    frame farthest from the first one is held constant.
 //   So priors give a metric result in the priors' world frame; LiDAR
 //   constraints alone give a metric result with the first frame fixed.
-// Threads: Ceres uses `num_threads`; the state must not be shared meanwhile.
+// Threads: the Schur solver uses `num_threads` (deterministic reductions);
+// Ceres runs on one thread (its multi-threaded Schur elimination adds up in
+// thread-timing order), so the result is the same bit for bit from run to run.
+// The state must not be shared meanwhile.
 // Failures: a non-positive-definite prior or LiDAR covariance is user data
 // (InputError naming the frame / constraint); a problem without observations
 // returns stats with num_reprojection_residuals = 0 and changes nothing.
@@ -113,7 +116,7 @@ struct BundleAdjustmentOptions {
   // up to dense_schur_max_frames frames when cam_from_rig is not refined,
   // Ceres otherwise; ceres / schur force one (schur cannot refine cam_from_rig).
   std::string solver = "auto";
-  int num_threads = -1;               // -1: hardware threads
+  int num_threads = -1;               // Schur solver threads; -1: hardware threads
   bool verbose = false;               // Ceres progress to stdout
   bool Check() const;
 };

@@ -241,10 +241,12 @@ bool GlobalMapperOptions::Check() const {
   return true;
 }
 
-GlobalMapperResult RunGlobalMapper(const Database& database, const Rig* rig,
+GlobalMapperResult RunGlobalMapper(const Database& database,
+                                   const Rig* rig,
                                    const std::vector<LidarConstraintRecord>& lidar_constraints,
                                    const std::string& image_path,
-                                   const GlobalMapperOptions& options) {
+                                   const GlobalMapperOptions& options,
+                                   const WorkListRunner& pair_runner) {
   THROW_CHECK_OPTIONS(options);
   GlobalMapperResult result;
   GlobalMapperSummary& summary = result.summary;
@@ -277,7 +279,12 @@ GlobalMapperResult RunGlobalMapper(const Database& database, const Rig* rig,
 
   // ---- view graph ----
   t0 = Clock::now();
-  summary.view_graph = BuildViewGraph(database, options.view_graph, &base);
+  summary.view_graph = BuildViewGraph(database, options.view_graph, &base, pair_runner);
+  if (summary.view_graph.share_only) {
+    result = GlobalMapperResult();
+    result.share_only = true;
+    return result;
+  }
   summary.view_graph_seconds = SecondsSince(t0);
   LogInfo("global_mapper: view graph with {} edges from {} pairs ({:.2f} s)",
           summary.view_graph.num_edges, summary.view_graph.num_pairs_in_database,

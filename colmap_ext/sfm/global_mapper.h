@@ -37,6 +37,7 @@
 #include "colmap_ext/sfm/translation_averaging.h"
 #include "colmap_ext/sfm/triangulation.h"
 #include "colmap_ext/sfm/view_graph.h"
+#include "core/work_list.h"
 
 namespace lisfm {
 
@@ -166,14 +167,20 @@ struct GlobalMapperSummary {
 struct GlobalMapperResult {
   std::vector<Reconstruction> models;  // largest component first
   GlobalMapperSummary summary;
+  // `pair_runner` sent this process's view-graph pairs to another process,
+  // which continues alone: models and summary are empty here.
+  bool share_only = false;
 };
 
 // `rig` and `lidar_constraints` may be null / empty. `image_path` is only
-// used for point colours.
-GlobalMapperResult RunGlobalMapper(const Database& database, const Rig* rig,
+// used for point colours. `pair_runner` runs the view graph's per-pair
+// estimation (BuildViewGraph; empty: all pairs in this process).
+GlobalMapperResult RunGlobalMapper(const Database& database,
+                                   const Rig* rig,
                                    const std::vector<LidarConstraintRecord>& lidar_constraints,
                                    const std::string& image_path,
-                                   const GlobalMapperOptions& options);
+                                   const GlobalMapperOptions& options,
+                                   const WorkListRunner& pair_runner = {});
 
 }  // namespace colmap
 }  // namespace lisfm

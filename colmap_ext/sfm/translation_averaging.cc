@@ -788,9 +788,9 @@ TranslationAveragingStats AverageTranslations(const TranslationAveragingOptions&
             : ceres::DENSE_SCHUR;
     solver_options.max_num_iterations = options.max_num_iterations;
     solver_options.function_tolerance = options.function_tolerance;
-    solver_options.num_threads = options.num_threads > 0
-                                     ? options.num_threads
-                                     : std::max(1, tbb::this_task_arena::max_concurrency());
+    // One thread: Ceres 2.1's multi-threaded Schur elimination and cost sum
+    // add up in thread-timing order (results not reproducible bit for bit).
+    solver_options.num_threads = 1;
     solver_options.logging_type =
         options.verbose ? ceres::PER_MINIMIZER_ITERATION : ceres::SILENT;
     solver_options.minimizer_progress_to_stdout = options.verbose;

@@ -91,7 +91,8 @@
 // component, preferring one with a LiDAR link). Frames of other components
 // are set registered = false and counted in the stats (logged as a warning).
 //
-// Threads: the 1dSfM projections use TBB, Ceres `num_threads`. The function
+// Threads: the 1dSfM projections use TBB (`num_threads`), Ceres one thread
+// (bit-reproducible: its multi-threaded sums follow thread timing). The function
 // only touches `state` (frames' rig_from_world translations, registered flags,
 // edges' valid / rejected_by). Failures: THROW_CHECK (InternalError) on an
 // inconsistent state (an edge naming an unknown image, a camera without
@@ -148,7 +149,7 @@ struct TranslationAveragingOptions {
   double max_residual_angle_deg = 10.0;
   int max_num_iterations = 300;       // Ceres iterations
   double function_tolerance = 1e-10;  // Ceres relative cost change to stop
-  int num_threads = -1;               // TBB / Ceres threads; <= 0: all cores
+  int num_threads = -1;               // 1dSfM (TBB) threads; <= 0: all cores
   uint64_t random_seed = 1;           // seeds the 1dSfM axes and the random init
   bool verbose = false;               // Ceres progress to stdout (CLI only)
 

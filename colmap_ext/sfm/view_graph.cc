@@ -17,6 +17,7 @@
 #include "core/errors.h"
 #include "core/logging.h"
 #include "core/option_check.h"
+#include "core/work_list.h"
 
 namespace lisfm {
 namespace colmap {
@@ -216,9 +217,86 @@ struct PairJob {
   Mat3 database_E = Mat3::Zero();  // kEstimate: the matcher's E when usable
   bool metric = false;
   double threshold = 0.0;  // normalised-plane units
+  size_t geometry_index = 0;  // into the database's two_view_geometries list
+  // Filled by FillMatches() just before the pair is processed.
   std::vector<std::pair<point2D_t, point2D_t>> matches;
   std::vector<Vec2> x1, x2;
 };
+
+// The inlier matches of `geometry` and their normalised coordinates into
+// `job`; an index beyond an image's keypoints is an InputError naming the pair.
+void FillMatches(const std::string& database_path,
+                 image_pair_t pair_id,
+                 const TwoViewGeometry& geometry,
+                 const SfmImage& image1,
+                 const SfmImage& image2,
+                 PairJob* job) {
+  const size_t num_inliers = static_cast<size_t>(geometry.inlier_matches.rows());
+  job->matches.reserve(num_inliers);
+  job->x1.reserve(num_inliers);
+  job->x2.reserve(num_inliers);
+  for (size_t i = 0; i < num_inliers; ++i) {
+    const point2D_t idx1 = geometry.inlier_matches(i, 0);
+    const point2D_t idx2 = geometry.inlier_matches(i, 1);
+    if (idx1 >= image1.normalized.size() || idx2 >= image2.normalized.size()) {
+      throw InputError(database_path,
+                       "two_view_geometries pair_id " + std::to_string(pair_id),
+                       "expected inlier matches within the keypoints of images " +
+                           std::to_string(job->image_id1) + " (" +
+                           std::to_string(image1.normalized.size()) + ") and " +
+                           std::to_string(job->image_id2) + " (" +
+                           std::to_string(image2.normalized.size()) + "), found match (" +
+                           std::to_string(idx1) + ", " + std::to_string(idx2) + ")");
+    }
+    job->matches.emplace_back(idx1, idx2);
+    job->x1.push_back(image1.normalized[idx1]);
+    job->x2.push_back(image2.normalized[idx2]);
+  }
+}
+
+// Exact bytes of one pair's result (work_list.h): [has edge], then the edge's
+// ids, pose, metric flag, weight and inlier matches.
+std::string EncodeEdge(const std::optional<ViewGraphEdge>& edge) {
+  ByteWriter writer;
+  writer.Put<uint8_t>(edge ? 1 : 0);
+  if (!edge) return writer.Take();
+  writer.Put<image_t>(edge->image_id1);
+  writer.Put<image_t>(edge->image_id2);
+  writer.PutSe3(edge->cam2_from_cam1);
+  writer.Put<uint8_t>(edge->metric ? 1 : 0);
+  writer.Put<uint8_t>(edge->valid ? 1 : 0);
+  writer.Put<double>(edge->weight);
+  writer.Put<uint64_t>(edge->inliers.size());
+  for (const auto& [idx1, idx2] : edge->inliers) {
+    writer.Put<point2D_t>(idx1);
+    writer.Put<point2D_t>(idx2);
+  }
+  return writer.Take();
+}
+
+std::optional<ViewGraphEdge> DecodeEdge(const std::string& bytes) {
+  ByteReader reader(bytes);
+  if (reader.Get<uint8_t>() == 0) {
+    THROW_CHECK(reader.AtEnd());
+    return std::nullopt;
+  }
+  ViewGraphEdge edge;
+  edge.image_id1 = reader.Get<image_t>();
+  edge.image_id2 = reader.Get<image_t>();
+  edge.cam2_from_cam1 = reader.GetSe3();
+  edge.metric = reader.Get<uint8_t>() != 0;
+  edge.valid = reader.Get<uint8_t>() != 0;
+  edge.weight = reader.Get<double>();
+  const uint64_t num_inliers = reader.Get<uint64_t>();
+  edge.inliers.reserve(num_inliers);
+  for (uint64_t i = 0; i < num_inliers; ++i) {
+    const point2D_t idx1 = reader.Get<point2D_t>();
+    const point2D_t idx2 = reader.Get<point2D_t>();
+    edge.inliers.emplace_back(idx1, idx2);
+  }
+  THROW_CHECK(reader.AtEnd());
+  return edge;
+}
 
 // Result of one pair: an edge, or nothing when too few inliers remain.
 std::optional<ViewGraphEdge> ProcessPair(const PairJob& job,
@@ -358,7 +436,8 @@ bool IsUsableConfig(int config) {
 
 ViewGraphStats BuildViewGraph(const Database& database,
                               const ViewGraphOptions& options,
-                              MapperState* state) {
+                              MapperState* state,
+                              const WorkListRunner& runner) {
   THROW_CHECK(state != nullptr);
   THROW_CHECK_OPTIONS(options);
   const auto start = std::chrono::steady_clock::now();
@@ -378,7 +457,8 @@ ViewGraphStats BuildViewGraph(const Database& database,
 
   std::vector<PairJob> jobs;
   jobs.reserve(geometries.size());
-  for (const auto& [pair_id, geometry] : geometries) {
+  for (size_t g = 0; g < geometries.size(); ++g) {
+    const auto& [pair_id, geometry] = geometries[g];
     image_t image_id1 = kInvalidImageId, image_id2 = kInvalidImageId;
     PairIdToImagePair(pair_id, &image_id1, &image_id2);
     const auto it1 = state->images.find(image_id1);
@@ -410,28 +490,7 @@ ViewGraphStats BuildViewGraph(const Database& database,
     PairJob job;
     job.image_id1 = image_id1;
     job.image_id2 = image_id2;
-    job.matches.reserve(num_inliers);
-    job.x1.reserve(num_inliers);
-    job.x2.reserve(num_inliers);
-    for (size_t i = 0; i < num_inliers; ++i) {
-      const point2D_t idx1 = geometry.inlier_matches(i, 0);
-      const point2D_t idx2 = geometry.inlier_matches(i, 1);
-      if (idx1 >= image1.normalized.size() ||
-          idx2 >= image2.normalized.size()) {
-        throw InputError(
-            database.path(),
-            "two_view_geometries pair_id " + std::to_string(pair_id),
-            "expected inlier matches within the keypoints of images " +
-                std::to_string(image_id1) + " (" +
-                std::to_string(image1.normalized.size()) + ") and " +
-                std::to_string(image_id2) + " (" +
-                std::to_string(image2.normalized.size()) + "), found match (" +
-                std::to_string(idx1) + ", " + std::to_string(idx2) + ")");
-      }
-      job.matches.emplace_back(idx1, idx2);
-      job.x1.push_back(image1.normalized[idx1]);
-      job.x2.push_back(image2.normalized[idx2]);
-    }
+    job.geometry_index = g;
     const double focal =
         0.5 * (state->cameras.at(image1.camera_id).MeanFocalLength() +
                state->cameras.at(image2.camera_id).MeanFocalLength());
@@ -462,14 +521,63 @@ ViewGraphStats BuildViewGraph(const Database& database,
     jobs.push_back(std::move(job));
   }
 
-  std::vector<std::optional<ViewGraphEdge>> results(jobs.size());
+  // The pairs `items` (indices into jobs): matches read and checked in list
+  // order, then estimated in parallel; each result depends on its pair only.
   tbb::task_arena arena(options.num_threads > 0 ? options.num_threads
                                                 : tbb::task_arena::automatic);
-  arena.execute([&] {
-    tbb::parallel_for(size_t{0}, jobs.size(), [&](size_t i) {
-      results[i] = ProcessPair(jobs[i], options);
+  const auto process = [&](const std::vector<size_t>& items) {
+    for (size_t i : items) {
+      PairJob& job = jobs[i];
+      const auto& [pair_id, geometry] = geometries[job.geometry_index];
+      FillMatches(database.path(),
+                  pair_id,
+                  geometry,
+                  state->images.at(job.image_id1),
+                  state->images.at(job.image_id2),
+                  &job);
+    }
+    std::vector<std::optional<ViewGraphEdge>> edges(items.size());
+    arena.execute([&] {
+      tbb::parallel_for(size_t{0}, items.size(), [&](size_t k) {
+        PairJob& job = jobs[items[k]];
+        edges[k] = ProcessPair(job, options);
+        job.matches = {};  // the pair is done: its matches go
+        job.x1 = {};
+        job.x2 = {};
+      });
     });
-  });
+    return edges;
+  };
+  std::vector<std::optional<ViewGraphEdge>> results;
+  if (!runner) {
+    std::vector<size_t> all(jobs.size());
+    std::iota(all.begin(), all.end(), size_t{0});
+    results = process(all);
+  } else {
+    // Cost of a pair ~ its inlier matches (RANSAC, polish and inlier test
+    // are linear in them); a known pose only tests each match once.
+    std::vector<double> costs(jobs.size());
+    for (size_t i = 0; i < jobs.size(); ++i) {
+      const double n =
+          static_cast<double>(geometries[jobs[i].geometry_index].second.inlier_matches.rows());
+      costs[i] = jobs[i].kind == PairKind::kKnownPose ? 0.1 * n : n;
+    }
+    const std::optional<std::vector<std::string>> encoded =
+        runner(costs, [&](const std::vector<size_t>& items) {
+          const std::vector<std::optional<ViewGraphEdge>> edges = process(items);
+          std::vector<std::string> bytes;
+          bytes.reserve(edges.size());
+          for (const auto& edge : edges) bytes.push_back(EncodeEdge(edge));
+          return bytes;
+        });
+    if (!encoded) {
+      stats.share_only = true;
+      return stats;
+    }
+    THROW_CHECK_EQ(encoded->size(), jobs.size());
+    results.reserve(jobs.size());
+    for (const std::string& bytes : *encoded) results.push_back(DecodeEdge(bytes));
+  }
 
   for (size_t i = 0; i < jobs.size(); ++i) {
     if (!results[i]) {

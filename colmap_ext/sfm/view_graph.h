@@ -26,7 +26,10 @@
 //     error under that epipolar geometry is within the threshold are kept
 //     (angle between the rays when the two centres coincide).
 // Edge weight = number of kept inlier matches. Pairs are processed in
-// parallel (TBB); the database itself is read on the calling thread.
+// parallel (TBB); the database itself is read on the calling thread. Each
+// pair's result depends on that pair alone (RANSAC's generator starts from
+// the same state for every pair), so the pairs may also be split across
+// processes (`runner`, core/work_list.h: MPI ranks, balanced by match count).
 //
 // Frames and units: poses target_from_source; thresholds in pixels; the
 // pixel threshold is mapped to the normalised plane by the mean focal length.
@@ -40,6 +43,7 @@
 
 #include "colmap_ext/io/database.h"
 #include "colmap_ext/sfm/mapper_state.h"
+#include "core/work_list.h"
 
 namespace lisfm {
 namespace colmap {
@@ -78,14 +82,20 @@ struct ViewGraphStats {
   size_t num_rejected_reestimation = 0;  // too few inliers after re-estimation
   size_t num_inlier_matches = 0;         // sum of the edges' kept inliers
   double seconds = 0.0;                  // wall time of BuildViewGraph
+  // The runner sent this process's pairs to another process: state is left
+  // as it was (the counts above are not filled) and the caller stops.
+  bool share_only = false;
 };
 
 // Adds one edge per accepted pair to state->view_graph (which should be empty
 // on entry; pairs that already have an edge are left alone). Reads `state`
 // images, cameras, frames and cam_from_rig; see the header comment.
+// `runner` runs the per-pair estimation (empty: all pairs here); every
+// process calls BuildViewGraph with the same database, options and state.
 ViewGraphStats BuildViewGraph(const Database& database,
                               const ViewGraphOptions& options,
-                              MapperState* state);
+                              MapperState* state,
+                              const WorkListRunner& runner = {});
 
 // Connected components of frames: two frames are linked by a valid view-graph
 // edge between images of the two (different) frames, or by a LiDAR
