@@ -1,20 +1,31 @@
 #!/usr/bin/env bash
-# Stock `colmap mapper` vs `lisfm global_mapper` on the same COLMAP database,
-# per real data set, side by side. Prints one markdown table for
+# Stock `colmap mapper` (COLMAP 3.8) vs `lisfm global_mapper` vs COLMAP 4's
+# `colmap global_mapper` (the former GLOMAP) on the same COLMAP database, per
+# real data set, side by side. Prints one markdown table for
 # docs/BENCHMARKS.md (also written to WORK_DIR/compare_colmap.md).
 #
 #   scripts/compare_colmap.sh [--work_dir DIR] [--datasets a,b,...] [--rebuild]
-#                             [--keep_stock]
+#                             [--keep_stock] [--colmap4 PATH] [--mappers a,b,...]
 #
 # Data sets (../shared/data): lund_door (COLMAP reference model), fountain,
 # herzjesu, entry (Strecha ground-truth cameras), balbianello (Bundler model).
 # Per data set: one database from stock COLMAP (SIFT on the CPU with the known
 # intrinsics, one shared camera, exhaustive matching), reused from WORK_DIR
-# when present (--rebuild re-extracts); then two copies of it, one per mapper,
-# timed (wall clock of the mapping step only). Both models are measured with
-# stock `colmap model_analyzer` and scored with `lisfm model_evaluator`
-# against the reference (Sim(3) alignment: neither mapper is metric here).
+# when present (--rebuild re-extracts); then one copy of it per mapper (COLMAP 4
+# adds its rig/frame tables to the database it reads), timed (wall clock of the
+# mapping step only). Every model is measured with stock `colmap
+# model_analyzer` and scored with `lisfm model_evaluator` against the
+# reference (Sim(3) alignment: no mapper is metric here).
 # --keep_stock reuses a stock model and its time from an earlier run.
+# --colmap4 PATH (or env COLMAP4): COLMAP 4's `colmap` executable, built by
+# ../shared/peers/build_colmap4.sh (default build/peers/colmap4/bin/colmap when
+# present); without one its rows are left out with a note. It runs with its
+# default options and thread count. --mappers (default stock,lisfm,colmap4):
+# which mappers run, in that order (the speed-up and observation ratios need
+# stock); lisfm_noba / colmap4_noba run lisfm / COLMAP 4 without bundle
+# adjustment and retriangulation (skip options of both), so that their rows
+# score the rotations of rotation averaging and the positions of translation
+# averaging / global positioning.
 # When `lisfm global_mapper` is not available yet, its row shows n/a.
 set -euo pipefail
 source "$(dirname "${BASH_SOURCE[0]}")/common.sh"
@@ -23,13 +34,17 @@ WORK_DIR=/tmp/lisfm_compare_colmap
 DATASETS=lund_door,fountain,herzjesu,entry,balbianello
 REBUILD=0
 KEEP_STOCK=0
-usage() { sed -n '2,19p' "${BASH_SOURCE[0]}" | sed 's/^# \{0,1\}//'; }
+MAPPERS=stock,lisfm,colmap4
+COLMAP4=${COLMAP4:-}
+usage() { awk 'NR > 1 && !/^#/ {exit} NR > 1 {sub(/^# ?/, ""); print}' "${BASH_SOURCE[0]}"; }
 while [ $# -gt 0 ]; do
   case "$1" in
     --work_dir) WORK_DIR=$2; shift 2 ;;
     --datasets) DATASETS=$2; shift 2 ;;
     --rebuild) REBUILD=1; shift ;;
     --keep_stock) KEEP_STOCK=1; shift ;;
+    --colmap4) COLMAP4=$2; shift 2 ;;
+    --mappers) MAPPERS=$2; shift 2 ;;
     -h|--help) usage; exit 0 ;;
     *) echo "error: unknown argument '$1'" >&2; usage >&2; exit 2 ;;
   esac
@@ -42,6 +57,20 @@ command -v jq >/dev/null || { echo "error: jq not found (apt-get install jq)" >&
 export QT_QPA_PLATFORM=offscreen
 mkdir -p "$WORK_DIR"
 WORK_DIR=$(cd "$WORK_DIR" && pwd)
+
+if [ -z "$COLMAP4" ] && [ -x "$LISFM_ROOT/build/peers/colmap4/bin/colmap" ]; then
+  COLMAP4=$LISFM_ROOT/build/peers/colmap4/bin/colmap
+fi
+HAVE_COLMAP4=0
+COLMAP4_VERSION=""
+if [ -n "$COLMAP4" ]; then
+  [ -x "$COLMAP4" ] || { echo "error: --colmap4 $COLMAP4 is not an executable" >&2; exit 2; }
+  HAVE_COLMAP4=1
+  COLMAP4_VERSION=$("$COLMAP4" help 2>&1 | sed -n 's/^COLMAP \(.*\)/\1/p' | head -1)
+else
+  echo "note: COLMAP 4 not found (build it with ../shared/peers/build_colmap4.sh or pass" \
+    "--colmap4 PATH); its rows are left out" >&2
+fi
 
 HAVE_GLOBAL_MAPPER=1
 if ! "$LISFM" global_mapper -h >/dev/null 2>&1; then
@@ -136,14 +165,15 @@ analyze() {
     "$(sed -n 's/.*Mean reprojection error: *\([0-9.eE+-]*\)px.*/\1/p' <<<"$out" | head -1 | xargs printf "%.3f")"
 }
 
-# evaluate MODEL JSON: "rot_err pos_err auc1 auc5" (n/a when the evaluation fails).
+# evaluate MODEL JSON: "rot_err pos_err auc1 auc5 rel_rot_median rel_rot_max"
+# (n/a when the evaluation fails).
 evaluate() {
   if "$LISFM" model_evaluator --model_path "$1" --reference_path "$REFERENCE" \
       --output_path "$2" --quiet 1 >"${2%.json}.log" 2>&1; then
-    jq -r '"\(.rotation_error_deg.mean) \(.position_error.mean) \(.auc["1"]) \(.auc["5"])"' "$2" |
-      awk '{for (i = 1; i <= 4; ++i) $i = ($i ~ /^[-0-9.eE+]+$/) ? sprintf(i == 2 ? "%.4g" : "%.3f", $i) : "n/a"; print}'
+    jq -r '"\(.rotation_error_deg.mean) \(.position_error.mean) \(.auc["1"]) \(.auc["5"]) \(.relative_rotation_error_deg.median) \(.relative_rotation_error_deg.max)"' "$2" |
+      awk '{for (i = 1; i <= 6; ++i) $i = ($i ~ /^[-0-9.eE+]+$/) ? sprintf(i == 2 ? "%.4g" : (i == 1 || i >= 5) ? "%.4f" : "%.3f", $i) : "n/a"; print}'
   else
-    echo "n/a n/a n/a n/a"
+    echo "n/a n/a n/a n/a n/a n/a"
   fi
 }
 
@@ -164,9 +194,18 @@ run_mapper() {
   if [ "$side" = stock ]; then
     "$COLMAP" mapper --database_path "$dir/database.db" --image_path "$IMAGES" \
       --output_path "$dir/sparse" >"$dir/mapper.log" 2>&1 || rc=$?
+  elif [ "$side" = colmap4 ] || [ "$side" = colmap4_noba ]; then
+    local extra=()
+    [ "$side" = colmap4_noba ] && extra=(--GlobalMapper.skip_bundle_adjustment 1
+      --GlobalMapper.skip_retriangulation 1)
+    "$COLMAP4" global_mapper --database_path "$dir/database.db" --image_path "$IMAGES" \
+      --output_path "$dir/sparse" --log_target stderr "${extra[@]}" >"$dir/mapper.log" 2>&1 || rc=$?
   else
+    local extra=()
+    [ "$side" = lisfm_noba ] && extra=(--Mapper.skip_bundle_adjustment 1
+      --Mapper.skip_retriangulation 1)
     "$LISFM" global_mapper --database_path "$dir/database.db" --image_path "$IMAGES" \
-      --output_path "$dir/sparse" >"$dir/mapper.log" 2>&1 || rc=$?
+      --output_path "$dir/sparse" "${extra[@]}" >"$dir/mapper.log" 2>&1 || rc=$?
   fi
   t1=$(now)
   if [ "$rc" != 0 ]; then
@@ -187,6 +226,14 @@ ratio() { # ratio A B -> A / B with 2 decimals, n/a when not numeric
 
 ROWS=()
 IFS=',' read -r -a DATASET_LIST <<<"$DATASETS"
+IFS=',' read -r -a MAPPER_LIST <<<"$MAPPERS"
+for side in "${MAPPER_LIST[@]}"; do
+  case "$side" in
+    stock|lisfm|colmap4|lisfm_noba|colmap4_noba) ;;
+    *) echo "error: --mappers: unknown mapper '$side' (stock, lisfm, colmap4, lisfm_noba," \
+         "colmap4_noba)" >&2; exit 2 ;;
+  esac
+done
 for name in "${DATASET_LIST[@]}"; do
   dataset_config "$name"
   dir=$WORK_DIR/$name
@@ -194,42 +241,44 @@ for name in "${DATASET_LIST[@]}"; do
   build_database "$name" "$dir"
   num_images=$(find "$IMAGES" -maxdepth 1 -type f | wc -l)
 
-  stock_s=$(run_mapper "$name" stock "$dir")
-  stock_model=$(largest_model "$dir/stock/sparse")
-  if [ -n "$stock_model" ]; then
-    read -r s_reg s_pts s_obs s_tl s_rep <<<"$(analyze "$stock_model")"
-    read -r s_rot s_pos s_a1 s_a5 <<<"$(evaluate "$stock_model" "$dir/stock/metrics.json")"
-  else
-    s_reg=0 s_pts=n/a s_obs=n/a s_tl=n/a s_rep=n/a s_rot=n/a s_pos=n/a s_a1=n/a s_a5=n/a
-  fi
-  ROWS+=("| $name | colmap mapper | $stock_s | 1.0 | $s_reg/$num_images | $s_pts | $s_obs | 1.00 | $s_tl | $s_rep | $s_rot | $s_pos | $s_a1 | $s_a5 |")
-
-  if [ "$HAVE_GLOBAL_MAPPER" = 1 ]; then
-    ours_s=$(run_mapper "$name" lisfm "$dir")
-    ours_model=$(largest_model "$dir/lisfm/sparse")
-  else
-    ours_s=n/a ours_model=""
-  fi
-  if [ -n "$ours_model" ]; then
-    read -r o_reg o_pts o_obs o_tl o_rep <<<"$(analyze "$ours_model")"
-    read -r o_rot o_pos o_a1 o_a5 <<<"$(evaluate "$ours_model" "$dir/lisfm/metrics.json")"
-    ROWS+=("| $name | lisfm global_mapper | $ours_s | $(ratio "$stock_s" "$ours_s") | $o_reg/$num_images | $o_pts | $o_obs | $(ratio "$o_obs" "$s_obs") | $o_tl | $o_rep | $o_rot | $o_pos | $o_a1 | $o_a5 |")
-  else
-    ROWS+=("| $name | lisfm global_mapper | $ours_s | n/a | n/a | n/a | n/a | n/a | n/a | n/a | n/a | n/a | n/a | n/a |")
-  fi
+  stock_s=n/a s_obs=n/a
+  for side in "${MAPPER_LIST[@]}"; do
+    case "$side" in
+      stock) label="colmap mapper" ;;
+      lisfm) label="lisfm global_mapper"
+        [ "$HAVE_GLOBAL_MAPPER" = 1 ] || { ROWS+=("| $name | $label | n/a$(printf ' | n/a%.0s' {1..15}) |"); continue; } ;;
+      lisfm_noba) label="lisfm global_mapper, no BA"; [ "$HAVE_GLOBAL_MAPPER" = 1 ] || continue ;;
+      colmap4) label="colmap 4 global_mapper"; [ "$HAVE_COLMAP4" = 1 ] || continue ;;
+      colmap4_noba) label="colmap 4 global_mapper, no BA"; [ "$HAVE_COLMAP4" = 1 ] || continue ;;
+    esac
+    wall_s=$(run_mapper "$name" "$side" "$dir")
+    model=$(largest_model "$dir/$side/sparse")
+    if [ -n "$model" ]; then
+      read -r m_reg m_pts m_obs m_tl m_rep <<<"$(analyze "$model")"
+      read -r m_rot m_pos m_a1 m_a5 m_rmed m_rmax <<<"$(evaluate "$model" "$dir/$side/metrics.json")"
+    else
+      m_reg=0 m_pts=n/a m_obs=n/a m_tl=n/a m_rep=n/a m_rot=n/a m_pos=n/a m_a1=n/a m_a5=n/a
+      m_rmed=n/a m_rmax=n/a
+    fi
+    if [ "$side" = stock ]; then stock_s=$wall_s s_obs=$m_obs; fi
+    ROWS+=("| $name | $label | $wall_s | $(ratio "$stock_s" "$wall_s") | $m_reg/$num_images | $m_pts | $m_obs | $(ratio "$m_obs" "$s_obs") | $m_tl | $m_rep | $m_rot | $m_rmed | $m_rmax | $m_pos | $m_a1 | $m_a5 |")
+  done
 done
 
 {
-  printf "machine: %s cores, %s; colmap %s; %s\n\n" "$(nproc)" \
+  printf "machine: %s cores, %s; colmap %s; colmap 4: %s; %s; load at the end: %s\n\n" "$(nproc)" \
     "$(lscpu | sed -n 's/^Model name: *//p' | head -1)" \
-    "$("$COLMAP" help 2>&1 | sed -n 's/^COLMAP \([^ ]*\).*/\1/p' | head -1)" "$(date -u +%Y-%m-%d)"
-  echo "| dataset | mapper | wall s | speed-up | registered | points | observations | obs ratio vs stock | mean track length | reproj px | rot err deg | pos err | AUC@1° | AUC@5° |"
-  echo "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"
+    "$("$COLMAP" help 2>&1 | sed -n 's/^COLMAP \([^ ]*\).*/\1/p' | head -1)" \
+    "${COLMAP4_VERSION:-not run}" "$(date -u +%Y-%m-%dT%H:%MZ)" "$(cut -d' ' -f1-3 /proc/loadavg)"
+  echo "| dataset | mapper | wall s | speed-up vs stock | registered | points | observations | obs ratio vs stock | mean track length | reproj px | rot err deg | rel rot err median deg | rel rot err max deg | pos err | AUC@1° | AUC@5° |"
+  echo "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"
   printf "%s\n" "${ROWS[@]}"
   echo
   echo "wall s: mapping step only (same database copy per mapper); registered/points/observations/"
   echo "track length/reprojection error: stock colmap model_analyzer on the largest model; rot err:"
-  echo "mean over registered images after an L1 rotation alignment; pos err: mean after a Sim(3)"
-  echo "alignment of the camera centres (reference units: metres for Strecha); AUC: relative-pose"
-  echo "AUC over all image pairs (lisfm model_evaluator). Work folder: $WORK_DIR"
+  echo "mean over registered images after an L1 rotation alignment; rel rot err: median / max over"
+  echo "all pairs of registered images of the angle of R_est_ij R_ref_ij^T (alignment-free); pos err:"
+  echo "mean camera-centre error after a Sim(3) alignment of the centres (reference units: metres"
+  echo "for Strecha); AUC: relative-pose AUC over all image pairs (lisfm model_evaluator)."
+  echo "Work folder: $WORK_DIR"
 } | tee "$WORK_DIR/compare_colmap.md"

@@ -775,6 +775,318 @@ double UpdateTrackErrors(const std::set<size_t>& track_set, MapperState* state) 
   return total_count > 0 ? total / static_cast<double>(total_count) : 0.0;
 }
 
+// ---- Steps of RunBundleAdjustment, in call order ----
+
+// The observations of the adjustment and the sets they span.
+struct BaObservations {
+  std::vector<Observation> observations;  // grouped by track
+  std::set<size_t> track_set;
+  std::set<frame_t> frame_set;
+  std::set<image_t> image_set;
+  std::set<camera_t> camera_set;
+};
+
+// Observations of triangulated tracks (those SelectTracks keeps) in registered
+// images; tracks with fewer than two such observations leave the point
+// undetermined (skipped).
+BaObservations CollectObservations(const BundleAdjustmentOptions& options,
+                                   const MapperState& state) {
+  BaObservations o;
+  const std::vector<char> selected = SelectTracks(state, options.max_tracks_per_image);
+  for (size_t k = 0; k < state.tracks.size(); ++k) {
+    const Track& track = state.tracks[k];
+    if (!track.triangulated || !selected[k]) continue;
+    std::vector<Observation> track_obs;
+    for (const TrackElement& el : track.elements) {
+      const SfmImage* image = nullptr;
+      if (!ImageIsRegistered(state, el.image_id, &image)) continue;
+      THROW_CHECK_LT(el.point2D_idx, image->keypoints.size());
+      track_obs.push_back({k, el.image_id, el.point2D_idx});
+    }
+    if (track_obs.size() < 2) continue;
+    o.track_set.insert(k);
+    for (const Observation& obs : track_obs) {
+      const SfmImage& image = state.images.at(obs.image_id);
+      o.frame_set.insert(image.frame_id);
+      o.image_set.insert(obs.image_id);
+      o.camera_set.insert(image.camera_id);
+      o.observations.push_back(obs);
+    }
+  }
+  return o;
+}
+
+// Intrinsic parameters held constant, per camera of `camera_set`.
+void HoldIntrinsics(const BundleAdjustmentOptions& options, const MapperState& state,
+                    const std::set<camera_t>& camera_set, BaSpec* spec,
+                    BundleAdjustmentStats* stats) {
+  for (camera_t camera_id : camera_set) {
+    const Camera& camera = state.cameras.at(camera_id);
+    THROW_CHECK_MSG(camera.VerifyParams(), "camera " << camera.camera_id << " is invalid");
+    const CameraParamGroups groups = CameraModelParamGroups(camera.model_id);
+    std::vector<int>& constant = spec->constant_params[camera_id];
+    if (!options.refine_focal_length) {
+      constant.insert(constant.end(), groups.focal.begin(), groups.focal.end());
+    }
+    if (!options.refine_principal_point) {
+      constant.insert(constant.end(),
+                      groups.principal_point.begin(),
+                      groups.principal_point.end());
+    }
+    if (!options.refine_extra_params) {
+      constant.insert(constant.end(), groups.extra.begin(), groups.extra.end());
+    }
+    std::sort(constant.begin(), constant.end());
+    if (constant.size() < camera.params.size()) ++stats->num_cameras_refined;
+  }
+}
+
+// Pose priors (validated) of the frames of `frame_set`; InputError for a
+// covariance or sigma that cannot whiten.
+void CollectPriors(const BundleAdjustmentOptions& options, const MapperState& state,
+                   const std::set<frame_t>& frame_set, BaSpec* spec,
+                   BundleAdjustmentStats* stats) {
+  std::vector<PositionPrior>& position_priors = spec->position_priors;
+  std::vector<RotationPrior>& rotation_priors = spec->rotation_priors;
+  if (options.use_priors) {
+    for (frame_t frame_id : frame_set) {
+      const SfmFrame& frame = state.frames.at(frame_id);
+      if (frame.has_prior_position) {
+        Mat3 sqrt_information;
+        if (!SqrtInformation<3>(frame.prior_position_covariance,
+                                &sqrt_information)) {
+          throw InputError("pose prior of frame " + std::to_string(frame_id),
+                           "field prior_position_covariance",
+                           "expected a symmetric positive-definite 3x3 "
+                           "covariance (m^2), found "
+                           "one that is not");
+        }
+        position_priors.push_back({frame_id, frame.prior_position, sqrt_information});
+      }
+      if (frame.has_prior_rotation) {
+        if (!(frame.prior_rotation_sigma > 0.0) ||
+            !std::isfinite(frame.prior_rotation_sigma)) {
+          throw InputError("pose prior of frame " + std::to_string(frame_id),
+                           "field prior_rotation_sigma",
+                           "expected a positive finite sigma (rad), found " +
+                               std::to_string(frame.prior_rotation_sigma));
+        }
+        rotation_priors.push_back({frame_id,
+                                   frame.prior_rig_from_world_rotation.normalized(),
+                                   frame.prior_rotation_sigma});
+      }
+    }
+  }
+  stats->num_position_prior_residuals = position_priors.size();
+  stats->num_rotation_prior_residuals = rotation_priors.size();
+}
+
+// LiDAR relative pose constraints between two different frames of
+// `frame_set` (validated); the others are counted as skipped.
+void CollectLidarTerms(const BundleAdjustmentOptions& options, const MapperState& state,
+                       const std::set<frame_t>& frame_set, BaSpec* spec,
+                       BundleAdjustmentStats* stats) {
+  std::vector<LidarTerm>& lidar_terms = spec->lidar_terms;
+  if (options.use_lidar_constraints) {
+    for (size_t c = 0; c < state.lidar_constraints.size(); ++c) {
+      const LidarConstraint& constraint = state.lidar_constraints[c];
+      if (!frame_set.count(constraint.frame_id1) ||
+          !frame_set.count(constraint.frame_id2) ||
+          constraint.frame_id1 == constraint.frame_id2) {
+        ++stats->num_lidar_constraints_skipped;
+        continue;
+      }
+      Mat6 sqrt_information;
+      if (!SqrtInformation<6>(constraint.covariance, &sqrt_information)) {
+        throw InputError(
+            "LiDAR constraint " + std::to_string(c),
+            "field covariance",
+            "expected a symmetric positive-definite 6x6 covariance, found one "
+            "that is not");
+      }
+      lidar_terms.push_back({constraint.frame_id1, constraint.frame_id2,
+                             constraint.rig1_from_rig2, sqrt_information});
+    }
+  } else {
+    stats->num_lidar_constraints_skipped = state.lidar_constraints.size();
+  }
+  stats->num_lidar_residuals = lidar_terms.size();
+}
+
+// Gauge: which frame pose coordinates are held (first frame and/or one
+// translation coordinate of the frame farthest from it), from the priors and
+// LiDAR terms already in `spec`.
+void ChooseGauge(const BundleAdjustmentOptions& options, const MapperState& state,
+                 const std::set<frame_t>& frame_set, BaSpec* spec,
+                 BundleAdjustmentStats* stats) {
+  const std::vector<PositionPrior>& position_priors = spec->position_priors;
+  const std::vector<RotationPrior>& rotation_priors = spec->rotation_priors;
+  const std::vector<LidarTerm>& lidar_terms = spec->lidar_terms;
+  const frame_t first_frame = *frame_set.begin();
+  frame_t& scale_frame = spec->scale_frame;
+  int& scale_coordinate = spec->scale_coordinate;
+  if (!options.refine_frame_poses) {
+    stats->gauge = "frame poses constant";
+    return;
+  }
+  const bool pose_from_priors = position_priors.size() >= 3 ||
+                                (!position_priors.empty() && !rotation_priors.empty());
+  const bool scale_fixed = position_priors.size() >= 2 || !lidar_terms.empty();
+  std::vector<std::string> parts;
+  if (pose_from_priors) {
+    parts.push_back("pose from priors");
+  } else {
+    spec->first_frame_fixed = true;
+    parts.push_back("frame " + std::to_string(first_frame) + " fixed");
+  }
+  if (scale_fixed) {
+    parts.push_back(!lidar_terms.empty() ? "metric scale from LiDAR constraints"
+                                         : "metric scale from priors");
+  } else if (frame_set.size() >= 2) {
+    // The frame farthest from the first one; its largest translation
+    // coordinate is held (COLMAP's scale gauge).
+    const Vec3 first_center = state.frames.at(first_frame).rig_from_world.Inverse().translation();
+    double far_distance = -1.0;
+    for (frame_t frame_id : frame_set) {
+      if (frame_id == first_frame) continue;
+      const double distance =
+          (state.frames.at(frame_id).rig_from_world.Inverse().translation() - first_center)
+              .norm();
+      if (distance > far_distance) {
+        far_distance = distance;
+        scale_frame = frame_id;
+      }
+    }
+    const Vec3 t = state.frames.at(scale_frame).rig_from_world.translation();
+    scale_coordinate = 0;
+    for (int i = 1; i < 3; ++i) {
+      if (std::abs(t[i]) > std::abs(t[scale_coordinate])) scale_coordinate = i;
+    }
+    parts.push_back("scale: frame " + std::to_string(scale_frame) + " t[" +
+                    std::to_string(scale_coordinate) + "] fixed");
+  }
+  for (size_t i = 0; i < parts.size(); ++i) {
+    stats->gauge += (i ? "; " : "") + parts[i];
+  }
+}
+
+// Prior frame X (refine_prior_frame, with priors or LiDAR terms in `spec`):
+// which parts the data determine (guard, header comment).
+void ChoosePriorFrameFreedom(const BundleAdjustmentOptions& options, const MapperState& state,
+                             BaSpec* spec, BundleAdjustmentStats* stats) {
+  if (options.refine_prior_frame &&
+      !(spec->position_priors.empty() && spec->rotation_priors.empty() &&
+        spec->lidar_terms.empty())) {
+    spec->prior_frame = true;
+    stats->prior_frame_used = true;
+    if (!options.refine_frame_poses) {
+      stats->prior_frame_note = "held: frame poses constant";
+    } else if (spec->lidar_terms.empty()) {
+      stats->prior_frame_note = "held: no LiDAR terms";
+    } else {
+      // Rotation: refined when its weakest axis is determined. Translation:
+      // refined along the eigenvectors of its marginal covariance whose sigma
+      // is within the limit (uncorrelated with the held ones), held along the
+      // rest (a turn about one axis leaves t_X along that axis unseen).
+      Mat6 covariance;
+      Vec3 translation_sigmas = Vec3::Constant(std::numeric_limits<double>::infinity());
+      double rotation_sigma = std::numeric_limits<double>::infinity();
+      if (PriorFrameCovariance(*spec, state, &covariance)) {
+        const Eigen::SelfAdjointEigenSolver<Mat3> rotation(covariance.topLeftCorner<3, 3>());
+        const Eigen::SelfAdjointEigenSolver<Mat3> translation(covariance.bottomRightCorner<3, 3>());
+        rotation_sigma = std::sqrt(std::max(0.0, rotation.eigenvalues()(2)));
+        translation_sigmas = translation.eigenvalues().cwiseMax(0.0).cwiseSqrt();
+        spec->prior_frame_translation_axes = translation.eigenvectors();
+      }
+      stats->prior_frame_rotation_sigma_deg = rotation_sigma * 180.0 / M_PI;
+      stats->prior_frame_translation_sigma_m = translation_sigmas(2);
+      stats->prior_frame_translation_sigmas_m = translation_sigmas;
+      spec->prior_frame_rotation_free =
+          stats->prior_frame_rotation_sigma_deg <= options.prior_frame_max_rotation_sigma_deg;
+      while (spec->prior_frame_translation_free_axes < 3 &&
+             translation_sigmas(spec->prior_frame_translation_free_axes) <=
+                 options.prior_frame_max_translation_sigma_m) {
+        ++spec->prior_frame_translation_free_axes;
+      }
+      const int free_axes = spec->prior_frame_translation_free_axes;
+      std::string held;
+      if (free_axes > 0 && free_axes < 3) {
+        held = ", held along";
+        for (int k = free_axes; k < 3; ++k) {
+          const Vec3 axis = spec->prior_frame_translation_axes.col(k);
+          held += fmt::format("{} [{:.2f}, {:.2f}, {:.2f}]",
+                              k > free_axes ? " and" : "",
+                              axis.x(),
+                              axis.y(),
+                              axis.z());
+        }
+        held += " (rig axes)";
+      }
+      stats->prior_frame_note = fmt::format(
+          "rotation {} (predicted sigma {:.4f} deg, limit {:.4f}), translation {} (predicted "
+          "sigma {:.2f} / {:.2f} / {:.2f} mm per direction, limit {:.2f}){}",
+          spec->prior_frame_rotation_free ? "refined" : "held",
+          stats->prior_frame_rotation_sigma_deg,
+          options.prior_frame_max_rotation_sigma_deg,
+          free_axes == 3   ? "refined"
+          : free_axes == 0 ? "held"
+                           : fmt::format("refined along {} of 3 directions", free_axes),
+          translation_sigmas(0) * 1e3,
+          translation_sigmas(1) * 1e3,
+          translation_sigmas(2) * 1e3,
+          options.prior_frame_max_translation_sigma_m * 1e3,
+          held);
+    }
+    stats->prior_frame_rotation_refined = spec->prior_frame_rotation_free;
+    stats->prior_frame_translation_directions_refined = spec->prior_frame_translation_free_axes;
+    stats->prior_frame_translation_refined = spec->prior_frame_translation_free_axes > 0;
+  }
+
+}
+
+// The log lines of one adjustment (after it).
+void LogAdjustment(const MapperState& state, const BundleAdjustmentStats& stats) {
+  if (stats.prior_frame_used) {
+    const Vec3 omega_deg = so3::Log(state.rig_from_prior.rotation()) * 180.0 / M_PI;
+    const Vec3 t_mm = state.rig_from_prior.translation() * 1e3;
+    LogInfo(
+        "bundle adjustment: prior frame rig_from_prior: {}; now rotation [{:.4f}, {:.4f}, "
+        "{:.4f}] deg (rig axes), translation [{:.2f}, {:.2f}, {:.2f}] mm",
+        stats.prior_frame_note,
+        omega_deg.x(),
+        omega_deg.y(),
+        omega_deg.z(),
+        t_mm.x(),
+        t_mm.y(),
+        t_mm.z());
+  }
+  LogInfo(
+      "bundle adjustment: {} frames, {} images, {} points, {} observations, {} "
+      "prior + {} "
+      "LiDAR residuals; gauge: {}; cost {:.6g} -> {:.6g}, mean error {:.3f} -> "
+      "{:.3f} px, {} "
+      "iterations ({}), {:.2f} s (setup {:.2f}, solve {:.2f}: linear {:.2f}, "
+      "evaluation {:.2f})",
+      stats.num_frames,
+      stats.num_images,
+      stats.num_points,
+      stats.num_reprojection_residuals,
+      stats.num_position_prior_residuals + stats.num_rotation_prior_residuals,
+      stats.num_lidar_residuals,
+      stats.gauge,
+      stats.initial_cost,
+      stats.final_cost,
+      stats.initial_mean_reprojection_error_px,
+      stats.final_mean_reprojection_error_px,
+      stats.num_iterations,
+      stats.termination,
+      stats.seconds,
+      stats.setup_seconds,
+      stats.ceres_seconds,
+      stats.linear_solver_seconds,
+      stats.evaluation_seconds);
+}
+
 }  // namespace
 
 bool BundleAdjustmentOptions::Check() const {
@@ -803,259 +1115,37 @@ BundleAdjustmentStats RunBundleAdjustment(
   const auto start = std::chrono::steady_clock::now();
   BundleAdjustmentStats stats;
 
-  // Observations of triangulated tracks in registered images; tracks with
-  // fewer than two such observations leave the point undetermined (skipped).
-  std::vector<Observation> observations;
-  std::set<size_t> track_set;
-  std::set<frame_t> frame_set;
-  std::set<image_t> image_set;
-  std::set<camera_t> camera_set;
-  const std::vector<char> selected = SelectTracks(*state, options.max_tracks_per_image);
-  for (size_t k = 0; k < state->tracks.size(); ++k) {
-    const Track& track = state->tracks[k];
-    if (!track.triangulated || !selected[k]) continue;
-    std::vector<Observation> track_obs;
-    for (const TrackElement& el : track.elements) {
-      const SfmImage* image = nullptr;
-      if (!ImageIsRegistered(*state, el.image_id, &image)) continue;
-      THROW_CHECK_LT(el.point2D_idx, image->keypoints.size());
-      track_obs.push_back({k, el.image_id, el.point2D_idx});
-    }
-    if (track_obs.size() < 2) continue;
-    track_set.insert(k);
-    for (const Observation& obs : track_obs) {
-      const SfmImage& image = state->images.at(obs.image_id);
-      frame_set.insert(image.frame_id);
-      image_set.insert(obs.image_id);
-      camera_set.insert(image.camera_id);
-      observations.push_back(obs);
-    }
-  }
-  stats.num_points = track_set.size();
-  stats.num_frames = frame_set.size();
-  stats.num_images = image_set.size();
-  stats.num_cameras = camera_set.size();
-  if (observations.empty()) {
+  const BaObservations problem = CollectObservations(options, *state);
+  stats.num_points = problem.track_set.size();
+  stats.num_frames = problem.frame_set.size();
+  stats.num_images = problem.image_set.size();
+  stats.num_cameras = problem.camera_set.size();
+  if (problem.observations.empty()) {
     stats.termination = "no observations";
     LogWarning(
         "bundle adjustment: no triangulated track with two registered "
         "observations");
     return stats;
   }
-  stats.initial_mean_reprojection_error_px = MeanError(*state, observations);
-  stats.num_reprojection_residuals = observations.size();
+  stats.initial_mean_reprojection_error_px = MeanError(*state, problem.observations);
+  stats.num_reprojection_residuals = problem.observations.size();
 
   BaSpec spec;
-  // Intrinsic parameters held constant, per camera.
-  for (camera_t camera_id : camera_set) {
-    const Camera& camera = state->cameras.at(camera_id);
-    THROW_CHECK_MSG(camera.VerifyParams(), "camera " << camera.camera_id << " is invalid");
-    const CameraParamGroups groups = CameraModelParamGroups(camera.model_id);
-    std::vector<int>& constant = spec.constant_params[camera_id];
-    if (!options.refine_focal_length) {
-      constant.insert(constant.end(), groups.focal.begin(), groups.focal.end());
-    }
-    if (!options.refine_principal_point) {
-      constant.insert(constant.end(),
-                      groups.principal_point.begin(),
-                      groups.principal_point.end());
-    }
-    if (!options.refine_extra_params) {
-      constant.insert(constant.end(), groups.extra.begin(), groups.extra.end());
-    }
-    std::sort(constant.begin(), constant.end());
-    if (constant.size() < camera.params.size()) ++stats.num_cameras_refined;
-  }
-
-  // Pose priors (validated) of the frames in the problem.
-  std::vector<PositionPrior>& position_priors = spec.position_priors;
-  std::vector<RotationPrior>& rotation_priors = spec.rotation_priors;
-  if (options.use_priors) {
-    for (frame_t frame_id : frame_set) {
-      const SfmFrame& frame = state->frames.at(frame_id);
-      if (frame.has_prior_position) {
-        Mat3 sqrt_information;
-        if (!SqrtInformation<3>(frame.prior_position_covariance,
-                                &sqrt_information)) {
-          throw InputError("pose prior of frame " + std::to_string(frame_id),
-                           "field prior_position_covariance",
-                           "expected a symmetric positive-definite 3x3 "
-                           "covariance (m^2), found "
-                           "one that is not");
-        }
-        position_priors.push_back({frame_id, frame.prior_position, sqrt_information});
-      }
-      if (frame.has_prior_rotation) {
-        if (!(frame.prior_rotation_sigma > 0.0) ||
-            !std::isfinite(frame.prior_rotation_sigma)) {
-          throw InputError("pose prior of frame " + std::to_string(frame_id),
-                           "field prior_rotation_sigma",
-                           "expected a positive finite sigma (rad), found " +
-                               std::to_string(frame.prior_rotation_sigma));
-        }
-        rotation_priors.push_back({frame_id,
-                                   frame.prior_rig_from_world_rotation.normalized(),
-                                   frame.prior_rotation_sigma});
-      }
-    }
-  }
-  stats.num_position_prior_residuals = position_priors.size();
-  stats.num_rotation_prior_residuals = rotation_priors.size();
-
-  // LiDAR relative pose constraints between frames in the problem.
-  std::vector<LidarTerm>& lidar_terms = spec.lidar_terms;
-  if (options.use_lidar_constraints) {
-    for (size_t c = 0; c < state->lidar_constraints.size(); ++c) {
-      const LidarConstraint& constraint = state->lidar_constraints[c];
-      if (!frame_set.count(constraint.frame_id1) ||
-          !frame_set.count(constraint.frame_id2) ||
-          constraint.frame_id1 == constraint.frame_id2) {
-        ++stats.num_lidar_constraints_skipped;
-        continue;
-      }
-      Mat6 sqrt_information;
-      if (!SqrtInformation<6>(constraint.covariance, &sqrt_information)) {
-        throw InputError(
-            "LiDAR constraint " + std::to_string(c),
-            "field covariance",
-            "expected a symmetric positive-definite 6x6 covariance, found one "
-            "that is not");
-      }
-      lidar_terms.push_back({constraint.frame_id1, constraint.frame_id2,
-                             constraint.rig1_from_rig2, sqrt_information});
-    }
-  } else {
-    stats.num_lidar_constraints_skipped = state->lidar_constraints.size();
-  }
-  stats.num_lidar_residuals = lidar_terms.size();
-
-  // Gauge: which frame pose coordinates are held.
-  const frame_t first_frame = *frame_set.begin();
-  frame_t& scale_frame = spec.scale_frame;
-  int& scale_coordinate = spec.scale_coordinate;
-  if (!options.refine_frame_poses) {
-    stats.gauge = "frame poses constant";
-  } else {
-    const bool pose_from_priors = position_priors.size() >= 3 ||
-                                  (!position_priors.empty() && !rotation_priors.empty());
-    const bool scale_fixed = position_priors.size() >= 2 || !lidar_terms.empty();
-    std::vector<std::string> parts;
-    if (pose_from_priors) {
-      parts.push_back("pose from priors");
-    } else {
-      spec.first_frame_fixed = true;
-      parts.push_back("frame " + std::to_string(first_frame) + " fixed");
-    }
-    if (scale_fixed) {
-      parts.push_back(!lidar_terms.empty() ? "metric scale from LiDAR constraints"
-                                           : "metric scale from priors");
-    } else if (frame_set.size() >= 2) {
-      // The frame farthest from the first one; its largest translation
-      // coordinate is held (COLMAP's scale gauge).
-      const Vec3 first_center =
-          state->frames.at(first_frame).rig_from_world.Inverse().translation();
-      double far_distance = -1.0;
-      for (frame_t frame_id : frame_set) {
-        if (frame_id == first_frame) continue;
-        const double distance =
-            (state->frames.at(frame_id).rig_from_world.Inverse().translation() -
-             first_center)
-                .norm();
-        if (distance > far_distance) {
-          far_distance = distance;
-          scale_frame = frame_id;
-        }
-      }
-      const Vec3 t = state->frames.at(scale_frame).rig_from_world.translation();
-      scale_coordinate = 0;
-      for (int i = 1; i < 3; ++i) {
-        if (std::abs(t[i]) > std::abs(t[scale_coordinate])) scale_coordinate = i;
-      }
-      parts.push_back("scale: frame " + std::to_string(scale_frame) + " t[" +
-                      std::to_string(scale_coordinate) + "] fixed");
-    }
-    for (size_t i = 0; i < parts.size(); ++i) {
-      stats.gauge += (i ? "; " : "") + parts[i];
-    }
-  }
-
-  // Prior frame X: which parts the data determine (guard, header comment).
-  if (options.refine_prior_frame &&
-      !(position_priors.empty() && rotation_priors.empty() && lidar_terms.empty())) {
-    spec.prior_frame = true;
-    stats.prior_frame_used = true;
-    if (!options.refine_frame_poses) {
-      stats.prior_frame_note = "held: frame poses constant";
-    } else if (lidar_terms.empty()) {
-      stats.prior_frame_note = "held: no LiDAR terms";
-    } else {
-      // Rotation: refined when its weakest axis is determined. Translation:
-      // refined along the eigenvectors of its marginal covariance whose sigma
-      // is within the limit (uncorrelated with the held ones), held along the
-      // rest (a turn about one axis leaves t_X along that axis unseen).
-      Mat6 covariance;
-      Vec3 translation_sigmas = Vec3::Constant(std::numeric_limits<double>::infinity());
-      double rotation_sigma = std::numeric_limits<double>::infinity();
-      if (PriorFrameCovariance(spec, *state, &covariance)) {
-        const Eigen::SelfAdjointEigenSolver<Mat3> rotation(covariance.topLeftCorner<3, 3>());
-        const Eigen::SelfAdjointEigenSolver<Mat3> translation(covariance.bottomRightCorner<3, 3>());
-        rotation_sigma = std::sqrt(std::max(0.0, rotation.eigenvalues()(2)));
-        translation_sigmas = translation.eigenvalues().cwiseMax(0.0).cwiseSqrt();
-        spec.prior_frame_translation_axes = translation.eigenvectors();
-      }
-      stats.prior_frame_rotation_sigma_deg = rotation_sigma * 180.0 / M_PI;
-      stats.prior_frame_translation_sigma_m = translation_sigmas(2);
-      stats.prior_frame_translation_sigmas_m = translation_sigmas;
-      spec.prior_frame_rotation_free =
-          stats.prior_frame_rotation_sigma_deg <= options.prior_frame_max_rotation_sigma_deg;
-      while (spec.prior_frame_translation_free_axes < 3 &&
-             translation_sigmas(spec.prior_frame_translation_free_axes) <=
-                 options.prior_frame_max_translation_sigma_m) {
-        ++spec.prior_frame_translation_free_axes;
-      }
-      const int free_axes = spec.prior_frame_translation_free_axes;
-      std::string held;
-      if (free_axes > 0 && free_axes < 3) {
-        held = ", held along";
-        for (int k = free_axes; k < 3; ++k) {
-          const Vec3 axis = spec.prior_frame_translation_axes.col(k);
-          held += fmt::format("{} [{:.2f}, {:.2f}, {:.2f}]",
-                              k > free_axes ? " and" : "",
-                              axis.x(),
-                              axis.y(),
-                              axis.z());
-        }
-        held += " (rig axes)";
-      }
-      stats.prior_frame_note = fmt::format(
-          "rotation {} (predicted sigma {:.4f} deg, limit {:.4f}), translation {} (predicted "
-          "sigma {:.2f} / {:.2f} / {:.2f} mm per direction, limit {:.2f}){}",
-          spec.prior_frame_rotation_free ? "refined" : "held",
-          stats.prior_frame_rotation_sigma_deg,
-          options.prior_frame_max_rotation_sigma_deg,
-          free_axes == 3   ? "refined"
-          : free_axes == 0 ? "held"
-                           : fmt::format("refined along {} of 3 directions", free_axes),
-          translation_sigmas(0) * 1e3,
-          translation_sigmas(1) * 1e3,
-          translation_sigmas(2) * 1e3,
-          options.prior_frame_max_translation_sigma_m * 1e3,
-          held);
-    }
-    stats.prior_frame_rotation_refined = spec.prior_frame_rotation_free;
-    stats.prior_frame_translation_directions_refined = spec.prior_frame_translation_free_axes;
-    stats.prior_frame_translation_refined = spec.prior_frame_translation_free_axes > 0;
-  }
+  HoldIntrinsics(options, *state, problem.camera_set, &spec, &stats);
+  CollectPriors(options, *state, problem.frame_set, &spec, &stats);
+  CollectLidarTerms(options, *state, problem.frame_set, &spec, &stats);
+  ChooseGauge(options, *state, problem.frame_set, &spec, &stats);
+  ChoosePriorFrameFreedom(options, *state, &spec, &stats);
 
   const bool refine_rig = state->has_rig && options.refine_cam_from_rig;
-  spec.observations = &observations;
-  spec.track_set = &track_set;
-  spec.frame_set = &frame_set;
-  spec.camera_set = &camera_set;
+  spec.observations = &problem.observations;
+  spec.track_set = &problem.track_set;
+  spec.frame_set = &problem.frame_set;
+  spec.camera_set = &problem.camera_set;
   const bool use_schur =
       options.solver == "schur" ||
       (options.solver == "auto" && !refine_rig &&
-       static_cast<int>(frame_set.size()) <= options.dense_schur_max_frames);
+       static_cast<int>(problem.frame_set.size()) <= options.dense_schur_max_frames);
   if (use_schur) {
     THROW_CHECK_MSG(!refine_rig,
                     "the Schur solver does not refine cam_from_rig; use solver ceres");
@@ -1063,50 +1153,12 @@ BundleAdjustmentStats RunBundleAdjustment(
   } else {
     SolveWithCeres(options, spec, start, state, &stats);
   }
-  stats.final_mean_reprojection_error_px = UpdateTrackErrors(track_set, state);
+  stats.final_mean_reprojection_error_px = UpdateTrackErrors(problem.track_set, state);
   stats.rig_from_prior = state->rig_from_prior;
-  if (stats.prior_frame_used) {
-    const Vec3 omega_deg = so3::Log(state->rig_from_prior.rotation()) * 180.0 / M_PI;
-    const Vec3 t_mm = state->rig_from_prior.translation() * 1e3;
-    LogInfo(
-        "bundle adjustment: prior frame rig_from_prior: {}; now rotation [{:.4f}, {:.4f}, "
-        "{:.4f}] deg (rig axes), translation [{:.2f}, {:.2f}, {:.2f}] mm",
-        stats.prior_frame_note,
-        omega_deg.x(),
-        omega_deg.y(),
-        omega_deg.z(),
-        t_mm.x(),
-        t_mm.y(),
-        t_mm.z());
-  }
   stats.seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start)
           .count();
-  LogInfo(
-      "bundle adjustment: {} frames, {} images, {} points, {} observations, {} "
-      "prior + {} "
-      "LiDAR residuals; gauge: {}; cost {:.6g} -> {:.6g}, mean error {:.3f} -> "
-      "{:.3f} px, {} "
-      "iterations ({}), {:.2f} s (setup {:.2f}, solve {:.2f}: linear {:.2f}, "
-      "evaluation {:.2f})",
-      stats.num_frames,
-      stats.num_images,
-      stats.num_points,
-      stats.num_reprojection_residuals,
-      stats.num_position_prior_residuals + stats.num_rotation_prior_residuals,
-      stats.num_lidar_residuals,
-      stats.gauge,
-      stats.initial_cost,
-      stats.final_cost,
-      stats.initial_mean_reprojection_error_px,
-      stats.final_mean_reprojection_error_px,
-      stats.num_iterations,
-      stats.termination,
-      stats.seconds,
-      stats.setup_seconds,
-      stats.ceres_seconds,
-      stats.linear_solver_seconds,
-      stats.evaluation_seconds);
+  LogAdjustment(*state, stats);
   return stats;
 }
 

@@ -222,6 +222,277 @@ void PositionsFromPriors(const std::vector<frame_t>& frame_ids, MapperState* sta
   }
 }
 
+// ---- Stages of RunGlobalMapper, in call order ----
+
+// Loads cameras, images, keypoints, priors and rig frames and attaches the
+// LiDAR constraints to frames; fills the load counts of `summary`.
+MapperState LoadStage(const Database& database, const Rig* rig,
+                      const std::vector<LidarConstraintRecord>& lidar_constraints,
+                      const GlobalMapperOptions& options, GlobalMapperSummary* summary) {
+  const auto t0 = Clock::now();
+  MapperState base = LoadMapperState(database, rig, options.load);
+  size_t num_keypoints = 0;
+  for (const auto& [id, image] : base.images) num_keypoints += image.keypoints.size();
+  summary->num_cameras = base.cameras.size();
+  summary->num_images = base.images.size();
+  summary->num_frames = base.frames.size();
+  summary->num_keypoints = num_keypoints;
+  summary->has_rig = rig != nullptr;
+  summary->load_seconds = SecondsSince(t0);
+  LogInfo("global_mapper: {} cameras, {} images in {} frames, {} keypoints", base.cameras.size(),
+          base.images.size(), base.frames.size(), num_keypoints);
+
+  if (!lidar_constraints.empty()) {
+    const size_t attached = AttachLidarConstraints(
+        lidar_constraints,
+        static_cast<int64_t>(options.lidar_constraint_tolerance_ms * 1e6), &base);
+    summary->has_lidar_constraints = true;
+    summary->num_lidar_constraints_read = lidar_constraints.size();
+    summary->num_lidar_constraints_attached = attached;
+    LogInfo("global_mapper: {} of {} LiDAR constraints attached to frames", attached,
+            lidar_constraints.size());
+  }
+  return base;
+}
+
+// Builds the view graph of `base` and returns its connected components of
+// frames (largest first, FrameComponents); counts and warns about the
+// components below min_component_frames. `pair_runner` splits the per-pair
+// estimation (BuildViewGraph); on a process that only computed its share
+// (summary->view_graph.share_only) it returns no component.
+std::vector<std::vector<frame_t>> ViewGraphStage(const Database& database,
+                                                 const GlobalMapperOptions& options,
+                                                 const WorkListRunner& pair_runner,
+                                                 MapperState* base,
+                                                 GlobalMapperSummary* summary) {
+  const auto t0 = Clock::now();
+  summary->view_graph = BuildViewGraph(database, options.view_graph, base, pair_runner);
+  if (summary->view_graph.share_only) return {};
+  summary->view_graph_seconds = SecondsSince(t0);
+  LogInfo("global_mapper: view graph with {} edges from {} pairs ({:.2f} s)",
+          summary->view_graph.num_edges, summary->view_graph.num_pairs_in_database,
+          summary->view_graph_seconds);
+
+  std::vector<std::vector<frame_t>> components = FrameComponents(*base);
+  std::vector<frame_t> small;
+  for (const auto& c : components) {
+    if (static_cast<int>(c.size()) < options.min_component_frames) {
+      summary->num_frames_in_small_components += c.size();
+      small.insert(small.end(), c.begin(), c.end());
+    } else {
+      ++summary->num_components;
+    }
+  }
+  if (!small.empty()) {
+    LogWarning("global_mapper: {} frame(s) not reconstructed: their view-graph components have "
+               "fewer than Mapper.min_component_frames = {} frames (too few matched pairs "
+               "link them to the rest): {}",
+               small.size(), options.min_component_frames, FrameNames(*base, small));
+  }
+  if (components.empty() ||
+      static_cast<int>(components.front().size()) < options.min_component_frames) {
+    LogWarning("global_mapper: no connected component with at least {} frames; no model",
+               options.min_component_frames);
+  }
+  return components;
+}
+
+// Frame rotations of component `c` (`frame_ids`): rotation averaging, or the
+// rotation priors when skip_rotation_averaging; warns about dropped frames.
+void RotationStage(const GlobalMapperOptions& options, size_t c,
+                   const std::vector<frame_t>& frame_ids, MapperState* state,
+                   MapperComponentSummary* comp) {
+  const auto t0 = Clock::now();
+  if (options.skip_rotation_averaging) {
+    comp->rotation_averaging_skipped = true;
+    RotationsFromPriors(frame_ids, state, &comp->rotation_averaging);
+  } else {
+    comp->rotation_averaging = AverageRotations(options.rotation_averaging, frame_ids, state);
+  }
+  comp->rotation_averaging_seconds = SecondsSince(t0);
+
+  const std::vector<frame_t> lost = UnregisteredFrames(frame_ids, *state);
+  if (!lost.empty()) {
+    LogWarning("global_mapper: component {}: rotation averaging dropped {} of {} frame(s): {}: {}",
+               c, lost.size(), frame_ids.size(),
+               options.skip_rotation_averaging
+                   ? "they have no pose prior (Mapper.skip_rotation_averaging = 1)"
+                   : "their relative rotations to the rest were rejected as inconsistent "
+                     "(RotationAveraging.max_rotation_error_deg)",
+               FrameNames(*state, lost));
+  }
+}
+
+// Frame positions of the frames of `frame_ids` that rotation averaging
+// registered: translation averaging, or the position priors when
+// skip_translation_averaging; warns about dropped frames.
+void TranslationStage(const GlobalMapperOptions& options, size_t c,
+                      const std::vector<frame_t>& frame_ids, MapperState* state,
+                      MapperComponentSummary* comp) {
+  const auto t0 = Clock::now();
+  std::vector<frame_t> registered;
+  for (const frame_t id : frame_ids) {
+    if (state->frames.at(id).registered) registered.push_back(id);
+  }
+  if (options.skip_translation_averaging) {
+    comp->translation_averaging_skipped = true;
+    PositionsFromPriors(registered, state);
+  } else {
+    comp->translation_averaging =
+        AverageTranslations(options.translation_averaging, registered, state);
+  }
+  comp->translation_averaging_registered_frames = state->NumRegisteredFrames();
+  comp->translation_averaging_seconds = SecondsSince(t0);
+  const std::vector<frame_t> lost = UnregisteredFrames(registered, *state);
+  if (!lost.empty()) {
+    LogWarning("global_mapper: component {}: translation averaging dropped {} frame(s): {}: {}",
+               c, lost.size(),
+               options.skip_translation_averaging
+                   ? "they have no position prior (Mapper.skip_translation_averaging = 1)"
+                   : "no position is determined for them once outlier directions are removed",
+               FrameNames(*state, lost));
+  }
+}
+
+// Tracks from the matches of registered images, then their first triangulation.
+void TrackStage(const GlobalMapperOptions& options, MapperState* state,
+                MapperComponentSummary* comp) {
+  const auto t0 = Clock::now();
+  comp->tracks = BuildTracks(options.tracks, state);
+  comp->triangulation = TriangulateTracks(options.triangulation, state);
+  comp->tracks_seconds = SecondsSince(t0);
+}
+
+// The bundle adjustment options of refinement round `round` (the last one,
+// round == num_refinement_rounds, is the final adjustment).
+BundleAdjustmentOptions RoundBundleAdjustmentOptions(const GlobalMapperOptions& options,
+                                                     bool final_round) {
+  BundleAdjustmentOptions ba_options = options.bundle_adjustment;
+  if (!final_round) ba_options.function_tolerance = options.refinement_function_tolerance;
+  if (final_round && options.final_full_bundle_adjustment &&
+      ba_options.max_tracks_per_image > 0) {
+    // From the converged subsampled solution a few iterations reach the
+    // full optimum's accuracy; the long tail of tiny cost decreases is
+    // where the time went (Lund door: 34 iterations, 12 s, for the same
+    // camera errors as after 5).
+    ba_options.max_tracks_per_image = 0;
+    ba_options.max_num_iterations =
+        std::min(ba_options.max_num_iterations, options.final_max_num_iterations);
+  }
+  return ba_options;
+}
+
+// One refinement round of component `c`: bundle adjustment, then (points
+// left out of a subsampled adjustment re-triangulated) filtering and, except
+// in the final round, retriangulation.
+MapperRoundSummary RefinementRound(const GlobalMapperOptions& options, size_t c, int round,
+                                   MapperState* state) {
+  MapperRoundSummary r;
+  r.final_round = round == options.num_refinement_rounds;
+  auto t0 = Clock::now();
+  const BundleAdjustmentOptions ba_options = RoundBundleAdjustmentOptions(options, r.final_round);
+  r.bundle_adjustment_skipped = options.skip_bundle_adjustment;
+  if (!r.bundle_adjustment_skipped) {
+    r.bundle_adjustment = RunBundleAdjustment(ba_options, state);
+  }
+  r.bundle_adjustment_seconds = SecondsSince(t0);
+  t0 = Clock::now();
+  if (!r.bundle_adjustment_skipped && ba_options.max_tracks_per_image > 0) {
+    // The points left out of the adjustment follow the new poses.
+    TriangulateTracks(options.triangulation, state);
+  }
+  const FilterStats filtered = FilterTracks(options.triangulation, state);
+  r.filtered_observations =
+      filtered.num_observations_rejected_depth + filtered.num_observations_rejected_reprojection;
+  r.retriangulation_skipped = !r.final_round && options.skip_retriangulation;
+  if (!r.final_round && !r.retriangulation_skipped) {
+    r.retriangulated_observations = RetriangulateTracks(options.triangulation, state);
+  }
+  r.filter_retriangulate_seconds = SecondsSince(t0);
+  r.model = ModelCounts(*state);
+  LogInfo("global_mapper: component {} round {}: {} frames, {} points, {} observations, "
+          "{:.3f} px",
+          c, round, r.model.registered_frames, r.model.points, r.model.observations,
+          r.model.mean_reprojection_error_px);
+  return r;
+}
+
+// Logs rig_from_prior after the last adjustment of component `c` when it used
+// the prior frame.
+void LogRigFromPrior(size_t c, const MapperState& state, const MapperComponentSummary& comp) {
+  if (comp.refinement.empty() || !comp.refinement.back().bundle_adjustment.prior_frame_used) {
+    return;
+  }
+  const BundleAdjustmentStats& ba = comp.refinement.back().bundle_adjustment;
+  const Vec3 omega_deg = so3::Log(state.rig_from_prior.rotation()) * 180.0 / M_PI;
+  const Vec3 t_mm = state.rig_from_prior.translation() * 1e3;
+  LogInfo(
+      "global_mapper: component {}: rig_from_prior (the priors' / LiDAR constraints' "
+      "frame in the rig frame): rotation {:.4f} deg [{:.4f}, {:.4f}, {:.4f}] (rig axes), "
+      "translation [{:.2f}, {:.2f}, {:.2f}] mm; rotation {}, translation refined along {} "
+      "of 3 directions",
+      c,
+      omega_deg.norm(),
+      omega_deg.x(),
+      omega_deg.y(),
+      omega_deg.z(),
+      t_mm.x(),
+      t_mm.y(),
+      t_mm.z(),
+      ba.prior_frame_rotation_refined ? "refined" : "held",
+      ba.prior_frame_translation_directions_refined);
+}
+
+// One line with the wall time (s) of each stage of component `c`.
+void LogStageTimes(size_t c, const MapperComponentSummary& comp) {
+  double ba_seconds = 0.0;
+  double filter_seconds = 0.0;
+  for (const MapperRoundSummary& r : comp.refinement) {
+    ba_seconds += r.bundle_adjustment_seconds;
+    filter_seconds += r.filter_retriangulate_seconds;
+  }
+  LogInfo("global_mapper: component {} stage times (s): rotation averaging {:.3f}, translation "
+          "averaging {:.3f}, tracks + triangulation {:.3f}, bundle adjustment {:.3f} ({} "
+          "round(s)), filter + retriangulation {:.3f}, model {:.3f}",
+          c, comp.rotation_averaging_seconds, comp.translation_averaging_seconds,
+          comp.tracks_seconds, ba_seconds, comp.refinement.size(), filter_seconds,
+          comp.to_model_seconds);
+}
+
+// Reconstructs component `c` (`frame_ids`) from a copy of `base`: averaging,
+// tracks, refinement rounds, weak frames dropped. Appends its summary to
+// `summary->components`; returns false when it lost its frames in averaging
+// (no model). `*model` is the component's model otherwise.
+bool ReconstructComponent(const MapperState& base, const std::string& image_path,
+                          const GlobalMapperOptions& options, size_t c,
+                          const std::vector<frame_t>& frame_ids, GlobalMapperSummary* summary,
+                          Reconstruction* model) {
+  MapperComponentSummary& comp = summary->components.emplace_back();
+  comp.frames = frame_ids.size();
+  MapperState state = base;  // the stages register only this component's frames
+
+  RotationStage(options, c, frame_ids, &state, &comp);
+  TranslationStage(options, c, frame_ids, &state, &comp);
+  if (static_cast<int>(state.NumRegisteredFrames()) < options.min_component_frames) {
+    LogWarning("global_mapper: component {} lost its frames in averaging", c);
+    comp.lost_frames_in_averaging = true;
+    return false;
+  }
+  TrackStage(options, &state, &comp);
+  for (int round = 0; round <= options.num_refinement_rounds; ++round) {
+    comp.refinement.push_back(RefinementRound(options, c, round, &state));
+  }
+  LogRigFromPrior(c, state, comp);
+  comp.dropped_weak_frames = DropWeakFrames(options.min_frame_observations, base.cameras, &state);
+  comp.model = ModelCounts(state);
+
+  const auto t0 = Clock::now();
+  *model = ToReconstruction(state, options.read_colors ? image_path : std::string());
+  comp.to_model_seconds = SecondsSince(t0);
+  LogStageTimes(c, comp);
+  return true;
+}
+
 }  // namespace
 
 bool GlobalMapperOptions::Check() const {
@@ -252,75 +523,17 @@ GlobalMapperResult RunGlobalMapper(const Database& database,
   GlobalMapperSummary& summary = result.summary;
   const auto start = Clock::now();
 
-  // ---- load ----
-  auto t0 = Clock::now();
-  MapperState base = LoadMapperState(database, rig, options.load);
-  size_t num_keypoints = 0;
-  for (const auto& [id, image] : base.images) num_keypoints += image.keypoints.size();
-  summary.num_cameras = base.cameras.size();
-  summary.num_images = base.images.size();
-  summary.num_frames = base.frames.size();
-  summary.num_keypoints = num_keypoints;
-  summary.has_rig = rig != nullptr;
-  summary.load_seconds = SecondsSince(t0);
-  LogInfo("global_mapper: {} cameras, {} images in {} frames, {} keypoints", base.cameras.size(),
-          base.images.size(), base.frames.size(), num_keypoints);
-
-  if (!lidar_constraints.empty()) {
-    const size_t attached = AttachLidarConstraints(
-        lidar_constraints,
-        static_cast<int64_t>(options.lidar_constraint_tolerance_ms * 1e6), &base);
-    summary.has_lidar_constraints = true;
-    summary.num_lidar_constraints_read = lidar_constraints.size();
-    summary.num_lidar_constraints_attached = attached;
-    LogInfo("global_mapper: {} of {} LiDAR constraints attached to frames", attached,
-            lidar_constraints.size());
-  }
-
-  // ---- view graph ----
-  t0 = Clock::now();
-  summary.view_graph = BuildViewGraph(database, options.view_graph, &base, pair_runner);
+  MapperState base = LoadStage(database, rig, lidar_constraints, options, &summary);
+  const std::vector<std::vector<frame_t>> components =
+      ViewGraphStage(database, options, pair_runner, &base, &summary);
   if (summary.view_graph.share_only) {
     result = GlobalMapperResult();
     result.share_only = true;
     return result;
   }
-  summary.view_graph_seconds = SecondsSince(t0);
-  LogInfo("global_mapper: view graph with {} edges from {} pairs ({:.2f} s)",
-          summary.view_graph.num_edges, summary.view_graph.num_pairs_in_database,
-          summary.view_graph_seconds);
-
-  std::vector<std::vector<frame_t>> components = FrameComponents(base);
-  for (const auto& c : components) {
-    if (static_cast<int>(c.size()) < options.min_component_frames) {
-      summary.num_frames_in_small_components += c.size();
-    } else {
-      ++summary.num_components;
-    }
-  }
-  {
-    std::vector<frame_t> small;
-    for (const auto& c : components) {
-      if (static_cast<int>(c.size()) < options.min_component_frames) {
-        small.insert(small.end(), c.begin(), c.end());
-      }
-    }
-    if (!small.empty()) {
-      LogWarning("global_mapper: {} frame(s) not reconstructed: their view-graph components have "
-                 "fewer than Mapper.min_component_frames = {} frames (too few matched pairs "
-                 "link them to the rest): {}",
-                 small.size(), options.min_component_frames, FrameNames(base, small));
-    }
-  }
-  if (components.empty() ||
-      static_cast<int>(components.front().size()) < options.min_component_frames) {
-    LogWarning("global_mapper: no connected component with at least {} frames; no model",
-               options.min_component_frames);
-  }
 
   for (size_t c = 0; c < components.size(); ++c) {
-    const std::vector<frame_t>& frame_ids = components[c];
-    if (static_cast<int>(frame_ids.size()) < options.min_component_frames) continue;
+    if (static_cast<int>(components[c].size()) < options.min_component_frames) continue;
     if (!options.reconstruct_all_components && !result.models.empty()) {
       std::vector<frame_t> skipped;
       for (size_t k = c; k < components.size(); ++k) {
@@ -332,133 +545,9 @@ GlobalMapperResult RunGlobalMapper(const Database& database,
                  skipped.size(), FrameNames(base, skipped));
       break;
     }
-    MapperComponentSummary& comp = summary.components.emplace_back();
-    comp.frames = frame_ids.size();
-    MapperState state = base;  // the stages register only this component's frames
-
-    t0 = Clock::now();
-    if (options.skip_rotation_averaging) {
-      comp.rotation_averaging_skipped = true;
-      RotationsFromPriors(frame_ids, &state, &comp.rotation_averaging);
-    } else {
-      comp.rotation_averaging = AverageRotations(options.rotation_averaging, frame_ids, &state);
-    }
-    comp.rotation_averaging_seconds = SecondsSince(t0);
-
-    const std::vector<frame_t> lost_rotation = UnregisteredFrames(frame_ids, state);
-    if (!lost_rotation.empty()) {
-      LogWarning("global_mapper: component {}: rotation averaging dropped {} of {} frame(s): {}: {}",
-                 c, lost_rotation.size(), frame_ids.size(),
-                 options.skip_rotation_averaging
-                     ? "they have no pose prior (Mapper.skip_rotation_averaging = 1)"
-                     : "their relative rotations to the rest were rejected as inconsistent "
-                       "(RotationAveraging.max_rotation_error_deg)",
-                 FrameNames(state, lost_rotation));
-    }
-
-    t0 = Clock::now();
-    std::vector<frame_t> registered;
-    for (const frame_t id : frame_ids) {
-      if (state.frames.at(id).registered) registered.push_back(id);
-    }
-    if (options.skip_translation_averaging) {
-      comp.translation_averaging_skipped = true;
-      PositionsFromPriors(registered, &state);
-    } else {
-      comp.translation_averaging =
-          AverageTranslations(options.translation_averaging, registered, &state);
-    }
-    comp.translation_averaging_registered_frames = state.NumRegisteredFrames();
-    comp.translation_averaging_seconds = SecondsSince(t0);
-    const std::vector<frame_t> lost_translation = UnregisteredFrames(registered, state);
-    if (!lost_translation.empty()) {
-      LogWarning("global_mapper: component {}: translation averaging dropped {} frame(s): {}: {}",
-                 c, lost_translation.size(),
-                 options.skip_translation_averaging
-                     ? "they have no position prior (Mapper.skip_translation_averaging = 1)"
-                     : "no position is determined for them once outlier directions are removed",
-                 FrameNames(state, lost_translation));
-    }
-    if (static_cast<int>(state.NumRegisteredFrames()) < options.min_component_frames) {
-      LogWarning("global_mapper: component {} lost its frames in averaging", c);
-      comp.lost_frames_in_averaging = true;
-      continue;
-    }
-
-    t0 = Clock::now();
-    comp.tracks = BuildTracks(options.tracks, &state);
-    comp.triangulation = TriangulateTracks(options.triangulation, &state);
-    comp.tracks_seconds = SecondsSince(t0);
-
-    for (int round = 0; round <= options.num_refinement_rounds; ++round) {
-      MapperRoundSummary& r = comp.refinement.emplace_back();
-      r.final_round = round == options.num_refinement_rounds;
-      t0 = Clock::now();
-      BundleAdjustmentOptions ba_options = options.bundle_adjustment;
-      if (!r.final_round) ba_options.function_tolerance = options.refinement_function_tolerance;
-      if (r.final_round && options.final_full_bundle_adjustment &&
-          ba_options.max_tracks_per_image > 0) {
-        // From the converged subsampled solution a few iterations reach the
-        // full optimum's accuracy; the long tail of tiny cost decreases is
-        // where the time went (Lund door: 34 iterations, 12 s, for the same
-        // camera errors as after 5).
-        ba_options.max_tracks_per_image = 0;
-        ba_options.max_num_iterations =
-            std::min(ba_options.max_num_iterations, options.final_max_num_iterations);
-      }
-      r.bundle_adjustment_skipped = options.skip_bundle_adjustment;
-      if (!r.bundle_adjustment_skipped) {
-        r.bundle_adjustment = RunBundleAdjustment(ba_options, &state);
-      }
-      r.bundle_adjustment_seconds = SecondsSince(t0);
-      t0 = Clock::now();
-      if (!r.bundle_adjustment_skipped && ba_options.max_tracks_per_image > 0) {
-        // The points left out of the adjustment follow the new poses.
-        TriangulateTracks(options.triangulation, &state);
-      }
-      const FilterStats filtered = FilterTracks(options.triangulation, &state);
-      r.filtered_observations = filtered.num_observations_rejected_depth +
-                                filtered.num_observations_rejected_reprojection;
-      r.retriangulation_skipped = !r.final_round && options.skip_retriangulation;
-      if (!r.final_round && !r.retriangulation_skipped) {
-        r.retriangulated_observations = RetriangulateTracks(options.triangulation, &state);
-      }
-      r.filter_retriangulate_seconds = SecondsSince(t0);
-      r.model = ModelCounts(state);
-      LogInfo("global_mapper: component {} round {}: {} frames, {} points, {} observations, "
-              "{:.3f} px",
-              c, round, r.model.registered_frames, r.model.points, r.model.observations,
-              r.model.mean_reprojection_error_px);
-    }
-    if (!comp.refinement.empty() && comp.refinement.back().bundle_adjustment.prior_frame_used) {
-      const BundleAdjustmentStats& ba = comp.refinement.back().bundle_adjustment;
-      const Vec3 omega_deg = so3::Log(state.rig_from_prior.rotation()) * 180.0 / M_PI;
-      const Vec3 t_mm = state.rig_from_prior.translation() * 1e3;
-      LogInfo(
-          "global_mapper: component {}: rig_from_prior (the priors' / LiDAR constraints' "
-          "frame in the rig frame): rotation {:.4f} deg [{:.4f}, {:.4f}, {:.4f}] (rig axes), "
-          "translation [{:.2f}, {:.2f}, {:.2f}] mm; rotation {}, translation refined along {} "
-          "of 3 directions",
-          c,
-          omega_deg.norm(),
-          omega_deg.x(),
-          omega_deg.y(),
-          omega_deg.z(),
-          t_mm.x(),
-          t_mm.y(),
-          t_mm.z(),
-          ba.prior_frame_rotation_refined ? "refined" : "held",
-          ba.prior_frame_translation_directions_refined);
-    }
-    comp.dropped_weak_frames =
-        DropWeakFrames(options.min_frame_observations, base.cameras, &state);
-    comp.model = ModelCounts(state);
-
-    t0 = Clock::now();
-    Reconstruction model =
-        ToReconstruction(state, options.read_colors ? image_path : std::string());
-    comp.to_model_seconds = SecondsSince(t0);
-    if (model.NumImages() >= static_cast<size_t>(std::max(2, options.min_component_frames))) {
+    Reconstruction model;
+    if (ReconstructComponent(base, image_path, options, c, components[c], &summary, &model) &&
+        model.NumImages() >= static_cast<size_t>(std::max(2, options.min_component_frames))) {
       result.models.push_back(std::move(model));
     }
   }

@@ -150,6 +150,23 @@ TEST(GlobalMapper, RingWithOutliersRecoversCamerasUpToSimilarity) {
   }
   EXPECT_FALSE(c.refinement.front().final_round);
   EXPECT_TRUE(c.refinement.back().final_round);
+  // Every stage that ran has its own wall time (s), and the stages, which run
+  // one after the other, add up to no more than the whole run.
+  const GlobalMapperSummary& s = result.summary;
+  double stages = s.load_seconds + s.view_graph_seconds;
+  for (const double seconds : {c.rotation_averaging_seconds, c.translation_averaging_seconds,
+                               c.tracks_seconds, c.to_model_seconds}) {
+    EXPECT_GT(seconds, 0.0);
+    stages += seconds;
+  }
+  for (const MapperRoundSummary& r : c.refinement) {
+    EXPECT_GT(r.bundle_adjustment_seconds, 0.0);
+    EXPECT_GT(r.filter_retriangulate_seconds, 0.0);
+    stages += r.bundle_adjustment_seconds + r.filter_retriangulate_seconds;
+  }
+  EXPECT_GT(s.load_seconds, 0.0);
+  EXPECT_GT(s.view_graph_seconds, 0.0);
+  EXPECT_LE(stages, s.total_seconds);
 }
 
 TEST(GlobalMapper, RigWithPriorsAndLidarConstraintsIsMetric) {

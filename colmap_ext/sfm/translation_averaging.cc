@@ -309,6 +309,468 @@ bool LinearInitialPositions(const std::vector<DirectionEdge>& edges,
   return true;
 }
 
+// ---- Stages of AverageTranslations, in call order ----
+
+// Stage 1 on `edges`: the 1dSfM filter; the rejected edges are invalidated in
+// `state` (rejected_by = "1dsfm") and left out of the returned ones.
+std::vector<DirectionEdge> RejectEdges1DSfM(const TranslationAveragingOptions& options,
+                                            std::vector<DirectionEdge> edges, MapperState* state,
+                                            TranslationAveragingStats* stats) {
+  const auto filter_start = std::chrono::steady_clock::now();
+  const std::vector<bool> rejected = RunFilter1DSfM(options, edges);
+  std::vector<DirectionEdge> kept;
+  for (size_t e = 0; e < edges.size(); ++e) {
+    if (rejected[e]) {
+      ViewGraphEdge& edge = state->view_graph.edges[edges[e].edge_index];
+      edge.valid = false;
+      edge.rejected_by = kRejected1DSfM;
+      ++stats->num_rejected_1dsfm;
+    } else {
+      kept.push_back(edges[e]);
+    }
+  }
+  stats->seconds_1dsfm = SecondsSince(filter_start);
+  return kept;
+}
+
+// The frames of the problem (sorted ids) and their local indices.
+struct LocalFrames {
+  std::vector<frame_t> frames;
+  std::unordered_map<frame_t, size_t> local;
+};
+
+LocalFrames IndexFrames(const std::unordered_set<frame_t>& frame_set) {
+  LocalFrames result;
+  result.frames.assign(frame_set.begin(), frame_set.end());
+  std::sort(result.frames.begin(), result.frames.end());
+  for (size_t i = 0; i < result.frames.size(); ++i) result.local[result.frames[i]] = i;
+  return result;
+}
+
+// The LiDAR constraints between two different frames of `index`, in world
+// (Eq. 4) with the current rotations.
+std::vector<LidarLink> CollectLidarLinks(const TranslationAveragingOptions& options,
+                                         const MapperState& state, const LocalFrames& index) {
+  std::vector<LidarLink> lidar_links;
+  if (!options.use_lidar_constraints) return lidar_links;
+  for (const LidarConstraint& c : state.lidar_constraints) {
+    if (c.frame_id1 == c.frame_id2 || index.local.count(c.frame_id1) == 0 ||
+        index.local.count(c.frame_id2) == 0) {
+      continue;
+    }
+    const Mat3 world_from_rig1 =
+        state.frames.at(c.frame_id1).rig_from_world.RotationMatrix().transpose();
+    const Mat3 rig1_from_rig2 = c.rig1_from_rig2.RotationMatrix();
+    LidarLink link;
+    link.frame_id1 = c.frame_id1;
+    link.frame_id2 = c.frame_id2;
+    link.delta = world_from_rig1 * c.rig1_from_rig2.translation();  // Eq. (4)
+    const Mat3 rotation = world_from_rig1 * rig1_from_rig2;
+    link.covariance = rotation * c.covariance.block<3, 3>(3, 3) * rotation.transpose();
+    lidar_links.push_back(link);
+  }
+  return lidar_links;
+}
+
+// A connected component of the link graph (direction edges + LiDAR links).
+struct LinkComponent {
+  size_t size = 0;
+  size_t num_priors = 0;
+  bool has_lidar = false;
+  frame_t first_frame = 0;
+};
+
+// Which frames are solved: the components of the link graph whose gauge is
+// determined (header comment, "Which frames get a position").
+struct SolvedFrames {
+  std::unordered_map<size_t, LinkComponent> components;  // by union-find root
+  std::unordered_set<size_t> solved_roots;
+  std::vector<bool> solved;     // per local frame index
+  std::vector<bool> has_prior;  // per local frame index (use_priors and a position prior)
+  size_t total_priors = 0;
+  bool rig_metric = false;  // a frame with a metric rig baseline
+};
+
+SolvedFrames SelectSolvedFrames(const TranslationAveragingOptions& options,
+                                const std::vector<DirectionEdge>& edges,
+                                const std::vector<LidarLink>& lidar_links,
+                                const LocalFrames& index, MapperState* state,
+                                TranslationAveragingStats* stats) {
+  const std::vector<frame_t>& frames = index.frames;
+  SolvedFrames s;
+  s.has_prior.resize(frames.size());
+  for (size_t i = 0; i < frames.size(); ++i) {
+    s.has_prior[i] = options.use_priors && state->frames.at(frames[i]).has_prior_position;
+  }
+  if (options.use_rig_baselines_for_scale) {
+    for (const frame_t id : frames) {
+      if (FrameHasRigBaseline(*state, state->frames.at(id), options.min_rig_baseline)) {
+        s.rig_metric = true;
+        break;
+      }
+    }
+  }
+
+  UnionFind uf(frames.size());
+  for (const DirectionEdge& e : edges) {
+    uf.Union(index.local.at(e.frame_id1), index.local.at(e.frame_id2));
+  }
+  for (const LidarLink& l : lidar_links) {
+    uf.Union(index.local.at(l.frame_id1), index.local.at(l.frame_id2));
+  }
+  for (size_t i = 0; i < frames.size(); ++i) {
+    LinkComponent& c = s.components[uf.Find(i)];
+    if (c.size == 0) c.first_frame = frames[i];  // frames are sorted: smallest id
+    ++c.size;
+    c.num_priors += s.has_prior[i] ? 1 : 0;
+  }
+  for (const LidarLink& l : lidar_links) {
+    s.components[uf.Find(index.local.at(l.frame_id1))].has_lidar = true;
+  }
+  for (const auto& [root, c] : s.components) s.total_priors += c.num_priors;
+
+  if (s.total_priors > 0) {
+    for (const auto& [root, c] : s.components) {
+      if (c.num_priors >= 1 &&
+          (c.num_priors >= 2 || c.has_lidar || s.rig_metric || c.size == 1)) {
+        s.solved_roots.insert(root);
+      }
+    }
+  } else {
+    // The largest component (a LiDAR-linked one first), ties by the smallest frame id.
+    const LinkComponent* best = nullptr;
+    size_t best_root = 0;
+    for (const auto& [root, c] : s.components) {
+      const bool better =
+          best == nullptr || (c.has_lidar && !best->has_lidar) ||
+          (c.has_lidar == best->has_lidar &&
+           (c.size > best->size || (c.size == best->size && c.first_frame < best->first_frame)));
+      if (better) {
+        best = &c;
+        best_root = root;
+      }
+    }
+    s.solved_roots.insert(best_root);
+  }
+
+  s.solved.assign(frames.size(), false);
+  for (size_t i = 0; i < frames.size(); ++i) {
+    s.solved[i] = s.solved_roots.count(uf.Find(i)) > 0;
+    if (!s.solved[i]) {
+      state->frames.at(frames[i]).registered = false;
+      ++stats->num_frames_unregistered;
+    }
+  }
+  if (stats->num_frames_unregistered > 0) {
+    LogWarning("translation averaging: {} of {} frames have no determined position (not "
+               "connected to the solved part after filtering); they are unregistered",
+               stats->num_frames_unregistered, frames.size());
+  }
+  return s;
+}
+
+// Frame origins (world) being solved, per local index, and the local indices
+// held constant (translation gauge).
+struct Origins {
+  std::vector<Vec3> origins;
+  std::vector<size_t> fixed;
+};
+
+// Starting origins: the priors (or the first frame of each solved component
+// at the origin), LiDAR constraints chained from those, then the current
+// poses (init_from_current) or random positions in a cube for the rest.
+Origins InitialOrigins(const TranslationAveragingOptions& options, const MapperState& state,
+                       const LocalFrames& index, const SolvedFrames& s,
+                       const std::vector<LidarLink>& lidar_links) {
+  const std::vector<frame_t>& frames = index.frames;
+  Origins o;
+  o.origins.assign(frames.size(), Vec3::Zero());
+  std::vector<bool> initialised(frames.size(), false);
+  std::mt19937_64 rng(options.random_seed);
+  std::uniform_real_distribution<double> uniform(-1.0, 1.0);
+  Vec3 init_center = Vec3::Zero();
+  double init_extent = options.random_init_extent;
+  if (s.total_priors > 0) {
+    Eigen::AlignedBox3d box;
+    for (size_t i = 0; i < frames.size(); ++i) {
+      if (!s.solved[i] || !s.has_prior[i]) continue;
+      o.origins[i] = state.frames.at(frames[i]).prior_position;
+      initialised[i] = true;
+      box.extend(o.origins[i]);
+    }
+    init_center = box.center();
+    init_extent = std::max(init_extent, 0.5 * box.diagonal().maxCoeff());
+  } else {
+    for (const size_t root : s.solved_roots) {
+      const size_t i = index.local.at(s.components.at(root).first_frame);
+      o.origins[i] = Vec3::Zero();
+      initialised[i] = true;
+      o.fixed.push_back(i);
+    }
+  }
+  // Chain LiDAR constraints (breadth first) from the initialised frames.
+  {
+    std::vector<std::vector<std::pair<size_t, Vec3>>> lidar_adjacency(frames.size());
+    for (const LidarLink& l : lidar_links) {
+      const size_t i = index.local.at(l.frame_id1);
+      const size_t j = index.local.at(l.frame_id2);
+      lidar_adjacency[i].push_back({j, l.delta});
+      lidar_adjacency[j].push_back({i, -l.delta});
+    }
+    std::queue<size_t> queue;
+    for (size_t i = 0; i < frames.size(); ++i) {
+      if (initialised[i]) queue.push(i);
+    }
+    Eigen::AlignedBox3d box;
+    while (!queue.empty()) {
+      const size_t i = queue.front();
+      queue.pop();
+      box.extend(o.origins[i]);
+      for (const auto& [j, delta] : lidar_adjacency[i]) {
+        if (initialised[j] || !s.solved[j]) continue;
+        o.origins[j] = o.origins[i] + delta;
+        initialised[j] = true;
+        queue.push(j);
+      }
+    }
+    if (s.total_priors == 0 && !box.isEmpty()) {
+      init_center = box.center();
+      init_extent = std::max(init_extent, 0.5 * box.diagonal().maxCoeff());
+    }
+  }
+  for (size_t i = 0; i < frames.size(); ++i) {
+    if (!s.solved[i]) continue;
+    if (options.init_from_current) {
+      const SE3& pose = state.frames.at(frames[i]).rig_from_world;
+      o.origins[i] = -(pose.rotation().conjugate() * pose.translation());
+    } else if (!initialised[i]) {
+      o.origins[i] = init_center + init_extent * Vec3(uniform(rng), uniform(rng), uniform(rng));
+    }
+  }
+  return o;
+}
+
+// Without priors the random start is replaced by the linear solution (random
+// starts of (2) on sparse view graphs end in poor local minima), scaled to the
+// LiDAR constraints when there are some.
+void LinearStart(const TranslationAveragingOptions& options,
+                 const std::vector<DirectionEdge>& edges, const std::vector<size_t>& used_edges,
+                 const std::vector<LidarLink>& lidar_links, const LocalFrames& index,
+                 const SolvedFrames& s, Origins* o) {
+  if (s.total_priors != 0 || options.init_from_current || o->fixed.empty()) return;
+  const std::vector<frame_t>& frames = index.frames;
+  std::vector<Vec3> linear = o->origins;
+  if (!LinearInitialPositions(edges, used_edges, index.local, s.solved, o->fixed[0],
+                              options.random_seed, &linear)) {
+    LogDebug("translation averaging: linear initialisation failed; other start kept");
+    return;
+  }
+  // With LiDAR constraints, give the linear solution their scale (least squares).
+  double numerator = 0.0;
+  double denominator = 0.0;
+  for (const LidarLink& l : lidar_links) {
+    const size_t i = index.local.at(l.frame_id1);
+    const size_t j = index.local.at(l.frame_id2);
+    if (!s.solved[i] || !s.solved[j]) continue;
+    numerator += l.delta.dot(linear[j] - linear[i]);
+    denominator += (linear[j] - linear[i]).squaredNorm();
+  }
+  const double scale = denominator > 0 && numerator > 0 ? numerator / denominator : 1.0;
+  const size_t f = o->fixed[0];
+  for (size_t i = 0; i < frames.size(); ++i) {
+    if (s.solved[i]) o->origins[i] = o->origins[f] + scale * (linear[i] - linear[f]);
+  }
+}
+
+// One robust solve (Stage 2) of the origins from the used direction edges,
+// the priors and the LiDAR links, with the gauge of the header comment.
+// Updates the solve counts, gauge and Ceres fields of `stats`.
+void SolvePositions(const TranslationAveragingOptions& options, int round,
+                    const std::vector<DirectionEdge>& edges,
+                    const std::vector<size_t>& used_edges,
+                    const std::vector<LidarLink>& lidar_links, const LocalFrames& index,
+                    const SolvedFrames& s, const MapperState& state, Origins* o,
+                    TranslationAveragingStats* stats) {
+  const std::vector<frame_t>& frames = index.frames;
+  std::vector<Vec3>& origins = o->origins;
+  ceres::Problem::Options problem_options;
+  problem_options.loss_function_ownership = ceres::TAKE_OWNERSHIP;
+  ceres::Problem problem(problem_options);
+  std::vector<double> scales(used_edges.size());
+  for (size_t k = 0; k < used_edges.size(); ++k) {
+    const DirectionEdge& d = edges[used_edges[k]];
+    double* origin1 = origins[index.local.at(d.frame_id1)].data();
+    double* origin2 = origins[index.local.at(d.frame_id2)].data();
+    // Start each scale at its least-squares value for the current positions.
+    const Vec3 baseline = (Vec3(origin2) + d.offset2) - (Vec3(origin1) + d.offset1);
+    scales[k] = std::max(options.min_edge_scale,
+                         d.direction.dot(baseline) / std::max(baseline.squaredNorm(), 1e-12));
+    const double loss_scale = options.direction_loss_threshold / options.direction_sigma;
+    ceres::LossFunction* loss = nullptr;
+    if (options.direction_loss == "huber") {
+      loss = new ceres::HuberLoss(loss_scale);
+    } else if (options.direction_loss == "cauchy") {
+      loss = new ceres::CauchyLoss(loss_scale);
+    }
+    problem.AddResidualBlock(
+        BataDirectionCost::Create(d.direction, d.offset1, d.offset2, options.direction_sigma),
+        loss, origin1, origin2, &scales[k]);
+    problem.SetParameterLowerBound(&scales[k], 0, options.min_edge_scale);
+  }
+  stats->num_edges_used = used_edges.size();
+  stats->num_prior_residuals = 0;
+  stats->num_lidar_residuals = 0;
+  size_t num_bad_covariances = 0;
+  for (size_t i = 0; i < frames.size(); ++i) {
+    if (!s.solved[i] || !s.has_prior[i]) continue;
+    const SfmFrame& frame = state.frames.at(frames[i]);
+    ceres::CostFunction* cost = WhitenedPositionCost::CreatePrior(
+        frame.prior_position, frame.prior_position_covariance);
+    if (cost == nullptr) {
+      ++num_bad_covariances;
+      continue;
+    }
+    problem.AddResidualBlock(cost, nullptr, origins[i].data());
+    ++stats->num_prior_residuals;
+  }
+  for (const LidarLink& l : lidar_links) {
+    const size_t i = index.local.at(l.frame_id1);
+    const size_t j = index.local.at(l.frame_id2);
+    if (!s.solved[i] || !s.solved[j]) continue;
+    ceres::CostFunction* cost = WhitenedPositionCost::CreateRelative(l.delta, l.covariance);
+    if (cost == nullptr) {
+      ++num_bad_covariances;
+      continue;
+    }
+    problem.AddResidualBlock(cost, nullptr, origins[i].data(), origins[j].data());
+    ++stats->num_lidar_residuals;
+  }
+  if (num_bad_covariances > 0 && round == 0) {
+    LogWarning("translation averaging: skipped {} priors / LiDAR constraints whose position "
+               "covariance is not positive definite",
+               num_bad_covariances);
+  }
+  for (size_t i = 0; i < frames.size(); ++i) {
+    if (s.solved[i] && !problem.HasParameterBlock(origins[i].data())) {
+      // A frame without residuals (a single-frame component): keeps its value.
+      problem.AddParameterBlock(origins[i].data(), 3);
+      problem.SetParameterBlockConstant(origins[i].data());
+    }
+  }
+
+  // Gauge.
+  if (stats->num_prior_residuals == 0 && o->fixed.empty()) {
+    // Priors were announced but none was usable: fall back to a fixed frame.
+    for (const size_t root : s.solved_roots) {
+      const size_t i = index.local.at(s.components.at(root).first_frame);
+      origins[i].setZero();
+      o->fixed.push_back(i);
+    }
+  }
+  if (stats->num_prior_residuals > 0) {
+    stats->metric = true;
+    stats->gauge = "none fixed: metric, in the frame of the position priors";
+  } else {
+    for (const size_t i : o->fixed) problem.SetParameterBlockConstant(origins[i].data());
+    stats->metric = stats->num_lidar_residuals > 0 || s.rig_metric;
+    if (stats->metric) {
+      stats->gauge = fmt::format("frame {} fixed at the origin; scale from {}",
+                                 frames[o->fixed[0]],
+                                 stats->num_lidar_residuals > 0 ? "LiDAR constraints"
+                                                                : "rig baselines");
+    } else {
+      // Scale: left free in the solve (a one-dimensional null space that the
+      // Levenberg-Marquardt damping handles, as in GLOMAP; holding one s_ij
+      // fixed instead collapses the solution when that edge is an outlier),
+      // then fixed by NormaliseScale: the median baseline of the used edges becomes 1.
+      stats->gauge = fmt::format(
+          "frame {} fixed at the origin; scale: median baseline of the used edges = 1",
+          frames[o->fixed[0]]);
+    }
+  }
+
+  ceres::Solver::Options solver_options;
+  solver_options.linear_solver_type =
+      ceres::IsSparseLinearAlgebraLibraryTypeAvailable(ceres::SUITE_SPARSE) ||
+              ceres::IsSparseLinearAlgebraLibraryTypeAvailable(ceres::EIGEN_SPARSE)
+          ? ceres::SPARSE_SCHUR
+          : ceres::DENSE_SCHUR;
+  solver_options.max_num_iterations = options.max_num_iterations;
+  solver_options.function_tolerance = options.function_tolerance;
+  // One thread: Ceres 2.1's multi-threaded Schur elimination and cost sum
+  // add up in thread-timing order (results not reproducible bit for bit).
+  solver_options.num_threads = 1;
+  solver_options.logging_type = options.verbose ? ceres::PER_MINIMIZER_ITERATION : ceres::SILENT;
+  solver_options.minimizer_progress_to_stdout = options.verbose;
+  ceres::Solver::Summary summary;
+  if (problem.NumResidualBlocks() > 0) {
+    ceres::Solve(solver_options, &problem, &summary);
+    stats->converged = summary.IsSolutionUsable();
+    stats->iterations += static_cast<int>(summary.iterations.size());
+    if (round == 0) stats->initial_cost = summary.initial_cost;
+    stats->final_cost = summary.final_cost;
+    stats->message = summary.message;
+  } else {
+    stats->converged = true;
+    stats->message = "nothing to solve";
+  }
+  if (!stats->converged) {
+    LogWarning("translation averaging: Ceres found no usable solution ({})", stats->message);
+  }
+}
+
+// Invalidates the used edges whose direction differs from the solution's
+// baseline by more than max_residual_angle_deg (rejected_by =
+// "translation_averaging") and removes them from `used_edges`; returns
+// whether any was removed.
+bool RejectContradictedEdges(const TranslationAveragingOptions& options,
+                             const std::vector<DirectionEdge>& edges, const LocalFrames& index,
+                             const Origins& o, std::vector<size_t>* used_edges,
+                             MapperState* state, TranslationAveragingStats* stats) {
+  const double max_angle = options.max_residual_angle_deg * M_PI / 180.0;
+  std::vector<size_t> kept;
+  for (const size_t e : *used_edges) {
+    const DirectionEdge& d = edges[e];
+    const Vec3 baseline = (o.origins[index.local.at(d.frame_id2)] + d.offset2) -
+                          (o.origins[index.local.at(d.frame_id1)] + d.offset1);
+    const double cos_angle = baseline.norm() > 0 ? baseline.normalized().dot(d.direction) : -1.0;
+    if (std::acos(std::clamp(cos_angle, -1.0, 1.0)) <= max_angle) {
+      kept.push_back(e);
+      continue;
+    }
+    ViewGraphEdge& edge = state->view_graph.edges[d.edge_index];
+    edge.valid = false;
+    edge.rejected_by = kRejectedResidual;
+    ++stats->num_rejected_residual;
+  }
+  if (kept.size() == used_edges->size()) return false;
+  *used_edges = std::move(kept);
+  return true;
+}
+
+// Explicit scale gauge without metric information: the origins are scaled
+// about the fixed frame so that the median baseline of the used edges is 1.
+void NormaliseScale(const std::vector<DirectionEdge>& edges,
+                    const std::vector<size_t>& used_edges, const LocalFrames& index,
+                    const SolvedFrames& s, Origins* o) {
+  std::vector<Vec3>& origins = o->origins;
+  std::vector<double> baselines;
+  for (const size_t e : used_edges) {
+    const DirectionEdge& d = edges[e];
+    baselines.push_back(((origins[index.local.at(d.frame_id2)] + d.offset2) -
+                         (origins[index.local.at(d.frame_id1)] + d.offset1))
+                            .norm());
+  }
+  if (baselines.empty()) return;
+  std::nth_element(baselines.begin(), baselines.begin() + baselines.size() / 2, baselines.end());
+  const double median = baselines[baselines.size() / 2];
+  if (!(median > 0 && std::isfinite(median))) return;
+  const Vec3 anchor = origins[o->fixed[0]];
+  for (size_t i = 0; i < origins.size(); ++i) {
+    if (s.solved[i]) origins[i] = anchor + (origins[i] - anchor) / median;
+  }
+}
+
 }  // namespace
 
 bool TranslationAveragingOptions::Check() const {
@@ -459,7 +921,7 @@ TranslationAveragingStats AverageTranslations(const TranslationAveragingOptions&
   }
   const auto start = std::chrono::steady_clock::now();
   TranslationAveragingStats stats;
-  std::unordered_set<frame_t> frame_set = RegisteredFrames(*state, frame_ids);
+  const std::unordered_set<frame_t> frame_set = RegisteredFrames(*state, frame_ids);
   stats.num_frames = frame_set.size();
   if (frame_set.empty()) {
     stats.message = "no registered frames";
@@ -467,399 +929,45 @@ TranslationAveragingStats AverageTranslations(const TranslationAveragingOptions&
     return stats;
   }
 
-  // --- Stage 1: 1dSfM ---
+  // Stage 1: 1dSfM.
   std::vector<DirectionEdge> edges = CollectDirectionEdges(*state, frame_set);
   stats.num_edges_input = edges.size();
-  if (options.filter_1dsfm) {
-    const auto filter_start = std::chrono::steady_clock::now();
-    const std::vector<bool> rejected = RunFilter1DSfM(options, edges);
-    std::vector<DirectionEdge> kept;
-    for (size_t e = 0; e < edges.size(); ++e) {
-      if (rejected[e]) {
-        ViewGraphEdge& edge = state->view_graph.edges[edges[e].edge_index];
-        edge.valid = false;
-        edge.rejected_by = kRejected1DSfM;
-        ++stats.num_rejected_1dsfm;
-      } else {
-        kept.push_back(edges[e]);
-      }
-    }
-    edges = std::move(kept);
-    stats.seconds_1dsfm = SecondsSince(filter_start);
-  }
+  if (options.filter_1dsfm) edges = RejectEdges1DSfM(options, std::move(edges), state, &stats);
 
-  // --- Components of the remaining links and the gauge ---
-  std::vector<frame_t> frames(frame_set.begin(), frame_set.end());
-  std::sort(frames.begin(), frames.end());
-  std::unordered_map<frame_t, size_t> local;
-  for (size_t i = 0; i < frames.size(); ++i) local[frames[i]] = i;
-
-  std::vector<LidarLink> lidar_links;
-  if (options.use_lidar_constraints) {
-    for (const LidarConstraint& c : state->lidar_constraints) {
-      if (c.frame_id1 == c.frame_id2 || local.count(c.frame_id1) == 0 ||
-          local.count(c.frame_id2) == 0) {
-        continue;
-      }
-      const Mat3 world_from_rig1 =
-          state->frames.at(c.frame_id1).rig_from_world.RotationMatrix().transpose();
-      const Mat3 rig1_from_rig2 = c.rig1_from_rig2.RotationMatrix();
-      LidarLink link;
-      link.frame_id1 = c.frame_id1;
-      link.frame_id2 = c.frame_id2;
-      link.delta = world_from_rig1 * c.rig1_from_rig2.translation();  // Eq. (4)
-      const Mat3 rotation = world_from_rig1 * rig1_from_rig2;
-      link.covariance = rotation * c.covariance.block<3, 3>(3, 3) * rotation.transpose();
-      lidar_links.push_back(link);
-    }
-  }
-  const bool use_priors = options.use_priors;
-  auto has_prior = [&](frame_t id) {
-    return use_priors && state->frames.at(id).has_prior_position;
-  };
-  bool rig_metric = false;
-  if (options.use_rig_baselines_for_scale) {
-    for (const frame_t id : frames) {
-      if (FrameHasRigBaseline(*state, state->frames.at(id), options.min_rig_baseline)) {
-        rig_metric = true;
-        break;
-      }
-    }
-  }
-
-  UnionFind uf(frames.size());
-  for (const DirectionEdge& e : edges) uf.Union(local[e.frame_id1], local[e.frame_id2]);
-  for (const LidarLink& l : lidar_links) uf.Union(local[l.frame_id1], local[l.frame_id2]);
-  struct Component {
-    size_t size = 0;
-    size_t num_priors = 0;
-    bool has_lidar = false;
-    frame_t first_frame = 0;
-  };
-  std::unordered_map<size_t, Component> components;
-  for (size_t i = 0; i < frames.size(); ++i) {
-    Component& c = components[uf.Find(i)];
-    if (c.size == 0) c.first_frame = frames[i];  // frames are sorted: smallest id
-    ++c.size;
-    c.num_priors += has_prior(frames[i]) ? 1 : 0;
-  }
-  for (const LidarLink& l : lidar_links) components[uf.Find(local[l.frame_id1])].has_lidar = true;
-  size_t total_priors = 0;
-  for (const auto& [root, c] : components) total_priors += c.num_priors;
-
-  std::unordered_set<size_t> solved_roots;
-  if (total_priors > 0) {
-    for (const auto& [root, c] : components) {
-      if (c.num_priors >= 1 &&
-          (c.num_priors >= 2 || c.has_lidar || rig_metric || c.size == 1)) {
-        solved_roots.insert(root);
-      }
-    }
-  } else {
-    // The largest component (a LiDAR-linked one first), ties by the smallest frame id.
-    const Component* best = nullptr;
-    size_t best_root = 0;
-    for (const auto& [root, c] : components) {
-      const bool better =
-          best == nullptr || (c.has_lidar && !best->has_lidar) ||
-          (c.has_lidar == best->has_lidar &&
-           (c.size > best->size || (c.size == best->size && c.first_frame < best->first_frame)));
-      if (better) {
-        best = &c;
-        best_root = root;
-      }
-    }
-    solved_roots.insert(best_root);
-  }
-
-  std::vector<bool> solved(frames.size(), false);
-  for (size_t i = 0; i < frames.size(); ++i) {
-    solved[i] = solved_roots.count(uf.Find(i)) > 0;
-    if (!solved[i]) {
-      state->frames.at(frames[i]).registered = false;
-      ++stats.num_frames_unregistered;
-    }
-  }
-  if (stats.num_frames_unregistered > 0) {
-    LogWarning("translation averaging: {} of {} frames have no determined position (not "
-               "connected to the solved part after filtering); they are unregistered",
-               stats.num_frames_unregistered, frames.size());
-  }
-
-  // --- Initialisation ---
-  std::vector<Vec3> origins(frames.size(), Vec3::Zero());
-  std::vector<bool> initialised(frames.size(), false);
-  std::mt19937_64 rng(options.random_seed);
-  std::uniform_real_distribution<double> uniform(-1.0, 1.0);
-  std::vector<size_t> fixed;  // local indices held constant (translation gauge)
-  Vec3 init_center = Vec3::Zero();
-  double init_extent = options.random_init_extent;
-  if (total_priors > 0) {
-    Eigen::AlignedBox3d box;
-    for (size_t i = 0; i < frames.size(); ++i) {
-      if (!solved[i] || !has_prior(frames[i])) continue;
-      origins[i] = state->frames.at(frames[i]).prior_position;
-      initialised[i] = true;
-      box.extend(origins[i]);
-    }
-    init_center = box.center();
-    init_extent = std::max(init_extent, 0.5 * box.diagonal().maxCoeff());
-  } else {
-    for (const size_t root : solved_roots) {
-      const size_t i = local[components[root].first_frame];
-      origins[i] = Vec3::Zero();
-      initialised[i] = true;
-      fixed.push_back(i);
-    }
-  }
-  // Chain LiDAR constraints (breadth first) from the initialised frames.
-  {
-    std::vector<std::vector<std::pair<size_t, Vec3>>> lidar_adjacency(frames.size());
-    for (const LidarLink& l : lidar_links) {
-      lidar_adjacency[local[l.frame_id1]].push_back({local[l.frame_id2], l.delta});
-      lidar_adjacency[local[l.frame_id2]].push_back({local[l.frame_id1], -l.delta});
-    }
-    std::queue<size_t> queue;
-    for (size_t i = 0; i < frames.size(); ++i) {
-      if (initialised[i]) queue.push(i);
-    }
-    Eigen::AlignedBox3d box;
-    while (!queue.empty()) {
-      const size_t i = queue.front();
-      queue.pop();
-      box.extend(origins[i]);
-      for (const auto& [j, delta] : lidar_adjacency[i]) {
-        if (initialised[j] || !solved[j]) continue;
-        origins[j] = origins[i] + delta;
-        initialised[j] = true;
-        queue.push(j);
-      }
-    }
-    if (total_priors == 0 && !box.isEmpty()) {
-      init_center = box.center();
-      init_extent = std::max(init_extent, 0.5 * box.diagonal().maxCoeff());
-    }
-  }
-  for (size_t i = 0; i < frames.size(); ++i) {
-    if (!solved[i]) continue;
-    if (options.init_from_current) {
-      const SE3& pose = state->frames.at(frames[i]).rig_from_world;
-      origins[i] = -(pose.rotation().conjugate() * pose.translation());
-    } else if (!initialised[i]) {
-      origins[i] = init_center + init_extent * Vec3(uniform(rng), uniform(rng), uniform(rng));
-    }
-  }
-
-  // --- Problem, solved in rounds (the second without the edges that the
-  // first solution contradicts) ---
+  // The frames whose gauge is determined, and their start.
+  const LocalFrames index = IndexFrames(frame_set);
+  const std::vector<LidarLink> lidar_links = CollectLidarLinks(options, *state, index);
+  const SolvedFrames solved = SelectSolvedFrames(options, edges, lidar_links, index, state, &stats);
+  Origins origins = InitialOrigins(options, *state, index, solved, lidar_links);
   std::vector<size_t> used_edges;  // into `edges`
   for (size_t e = 0; e < edges.size(); ++e) {
-    if (solved[local[edges[e].frame_id1]] && solved[local[edges[e].frame_id2]]) {
+    if (solved.solved[index.local.at(edges[e].frame_id1)] &&
+        solved.solved[index.local.at(edges[e].frame_id2)]) {
       used_edges.push_back(e);
     }
   }
-  // Without priors the random start is replaced by the linear solution
-  // (random starts of (2) on sparse view graphs end in poor local minima).
-  if (total_priors == 0 && !options.init_from_current && !fixed.empty()) {
-    std::vector<Vec3> linear = origins;
-    if (LinearInitialPositions(edges, used_edges, local, solved, fixed[0], options.random_seed,
-                               &linear)) {
-      // With LiDAR constraints, give the linear solution their scale (least squares).
-      double numerator = 0.0;
-      double denominator = 0.0;
-      for (const LidarLink& l : lidar_links) {
-        const size_t i = local[l.frame_id1];
-        const size_t j = local[l.frame_id2];
-        if (!solved[i] || !solved[j]) continue;
-        numerator += l.delta.dot(linear[j] - linear[i]);
-        denominator += (linear[j] - linear[i]).squaredNorm();
-      }
-      const double scale = denominator > 0 && numerator > 0 ? numerator / denominator : 1.0;
-      for (size_t i = 0; i < frames.size(); ++i) {
-        if (solved[i]) origins[i] = origins[fixed[0]] + scale * (linear[i] - linear[fixed[0]]);
-      }
-    } else {
-      LogDebug("translation averaging: linear initialisation failed; other start kept");
-    }
-  }
+  LinearStart(options, edges, used_edges, lidar_links, index, solved, &origins);
+
+  // Stage 2: solved in rounds, the second without the edges that the first
+  // solution contradicts.
   const int num_rounds = options.max_residual_angle_deg > 0 ? 2 : 1;
   for (int round = 0; round < num_rounds; ++round) {
-    ceres::Problem::Options problem_options;
-    problem_options.loss_function_ownership = ceres::TAKE_OWNERSHIP;
-    ceres::Problem problem(problem_options);
-    std::vector<double> scales(used_edges.size());
-    for (size_t k = 0; k < used_edges.size(); ++k) {
-      const DirectionEdge& d = edges[used_edges[k]];
-      double* origin1 = origins[local[d.frame_id1]].data();
-      double* origin2 = origins[local[d.frame_id2]].data();
-      // Start each scale at its least-squares value for the current positions.
-      const Vec3 baseline = (Vec3(origin2) + d.offset2) - (Vec3(origin1) + d.offset1);
-      scales[k] = std::max(options.min_edge_scale,
-                           d.direction.dot(baseline) / std::max(baseline.squaredNorm(), 1e-12));
-      const double loss_scale = options.direction_loss_threshold / options.direction_sigma;
-      ceres::LossFunction* loss = nullptr;
-      if (options.direction_loss == "huber") {
-        loss = new ceres::HuberLoss(loss_scale);
-      } else if (options.direction_loss == "cauchy") {
-        loss = new ceres::CauchyLoss(loss_scale);
-      }
-      problem.AddResidualBlock(
-          BataDirectionCost::Create(d.direction, d.offset1, d.offset2, options.direction_sigma),
-          loss, origin1, origin2, &scales[k]);
-      problem.SetParameterLowerBound(&scales[k], 0, options.min_edge_scale);
-    }
-    stats.num_edges_used = used_edges.size();
-    stats.num_prior_residuals = 0;
-    stats.num_lidar_residuals = 0;
-    size_t num_bad_covariances = 0;
-    for (size_t i = 0; i < frames.size(); ++i) {
-      if (!solved[i] || !has_prior(frames[i])) continue;
-      const SfmFrame& frame = state->frames.at(frames[i]);
-      ceres::CostFunction* cost = WhitenedPositionCost::CreatePrior(
-          frame.prior_position, frame.prior_position_covariance);
-      if (cost == nullptr) {
-        ++num_bad_covariances;
-        continue;
-      }
-      problem.AddResidualBlock(cost, nullptr, origins[i].data());
-      ++stats.num_prior_residuals;
-    }
-    for (const LidarLink& l : lidar_links) {
-      const size_t i = local[l.frame_id1];
-      const size_t j = local[l.frame_id2];
-      if (!solved[i] || !solved[j]) continue;
-      ceres::CostFunction* cost = WhitenedPositionCost::CreateRelative(l.delta, l.covariance);
-      if (cost == nullptr) {
-        ++num_bad_covariances;
-        continue;
-      }
-      problem.AddResidualBlock(cost, nullptr, origins[i].data(), origins[j].data());
-      ++stats.num_lidar_residuals;
-    }
-    if (num_bad_covariances > 0 && round == 0) {
-      LogWarning("translation averaging: skipped {} priors / LiDAR constraints whose position "
-                 "covariance is not positive definite",
-                 num_bad_covariances);
-    }
-    for (size_t i = 0; i < frames.size(); ++i) {
-      if (solved[i] && !problem.HasParameterBlock(origins[i].data())) {
-        // A frame without residuals (a single-frame component): keeps its value.
-        problem.AddParameterBlock(origins[i].data(), 3);
-        problem.SetParameterBlockConstant(origins[i].data());
-      }
-    }
-
-    // Gauge.
-    if (stats.num_prior_residuals == 0 && fixed.empty()) {
-      // Priors were announced but none was usable: fall back to a fixed frame.
-      for (const size_t root : solved_roots) {
-        const size_t i = local[components[root].first_frame];
-        origins[i].setZero();
-        fixed.push_back(i);
-      }
-    }
-    if (stats.num_prior_residuals > 0) {
-      stats.metric = true;
-      stats.gauge = "none fixed: metric, in the frame of the position priors";
-    } else {
-      for (const size_t i : fixed) problem.SetParameterBlockConstant(origins[i].data());
-      stats.metric = stats.num_lidar_residuals > 0 || rig_metric;
-      if (stats.metric) {
-        stats.gauge = fmt::format("frame {} fixed at the origin; scale from {}",
-                                  frames[fixed[0]],
-                                  stats.num_lidar_residuals > 0 ? "LiDAR constraints"
-                                                                : "rig baselines");
-      } else {
-        // Scale: left free in the solve (a one-dimensional null space that the
-        // Levenberg-Marquardt damping handles, as in GLOMAP; holding one s_ij
-        // fixed instead collapses the solution when that edge is an outlier),
-        // then fixed below: the median baseline of the used edges becomes 1.
-        stats.gauge = fmt::format(
-            "frame {} fixed at the origin; scale: median baseline of the used edges = 1",
-            frames[fixed[0]]);
-      }
-    }
-
-    ceres::Solver::Options solver_options;
-    solver_options.linear_solver_type =
-        ceres::IsSparseLinearAlgebraLibraryTypeAvailable(ceres::SUITE_SPARSE) ||
-                ceres::IsSparseLinearAlgebraLibraryTypeAvailable(ceres::EIGEN_SPARSE)
-            ? ceres::SPARSE_SCHUR
-            : ceres::DENSE_SCHUR;
-    solver_options.max_num_iterations = options.max_num_iterations;
-    solver_options.function_tolerance = options.function_tolerance;
-    // One thread: Ceres 2.1's multi-threaded Schur elimination and cost sum
-    // add up in thread-timing order (results not reproducible bit for bit).
-    solver_options.num_threads = 1;
-    solver_options.logging_type =
-        options.verbose ? ceres::PER_MINIMIZER_ITERATION : ceres::SILENT;
-    solver_options.minimizer_progress_to_stdout = options.verbose;
-    ceres::Solver::Summary summary;
-    if (problem.NumResidualBlocks() > 0) {
-      ceres::Solve(solver_options, &problem, &summary);
-      stats.converged = summary.IsSolutionUsable();
-      stats.iterations += static_cast<int>(summary.iterations.size());
-      if (round == 0) stats.initial_cost = summary.initial_cost;
-      stats.final_cost = summary.final_cost;
-      stats.message = summary.message;
-    } else {
-      stats.converged = true;
-      stats.message = "nothing to solve";
-    }
-    if (!stats.converged) {
-      LogWarning("translation averaging: Ceres found no usable solution ({})", stats.message);
-    }
+    SolvePositions(options, round, edges, used_edges, lidar_links, index, solved, *state,
+                   &origins, &stats);
     if (round + 1 == num_rounds) break;
-
-    // Edges that the solution contradicts by more than max_residual_angle_deg.
-    const double max_angle = options.max_residual_angle_deg * M_PI / 180.0;
-    std::vector<size_t> kept;
-    for (const size_t e : used_edges) {
-      const DirectionEdge& d = edges[e];
-      const Vec3 baseline =
-          (origins[local[d.frame_id2]] + d.offset2) - (origins[local[d.frame_id1]] + d.offset1);
-      const double cos_angle =
-          baseline.norm() > 0 ? baseline.normalized().dot(d.direction) : -1.0;
-      if (std::acos(std::clamp(cos_angle, -1.0, 1.0)) <= max_angle) {
-        kept.push_back(e);
-        continue;
-      }
-      ViewGraphEdge& edge = state->view_graph.edges[d.edge_index];
-      edge.valid = false;
-      edge.rejected_by = kRejectedResidual;
-      ++stats.num_rejected_residual;
-    }
-    if (kept.size() == used_edges.size()) break;  // nothing changed: no second round
-    used_edges = std::move(kept);
-  }
-
-  if (!stats.metric && !fixed.empty()) {
-    // Explicit scale gauge: the median baseline of the used edges becomes 1.
-    std::vector<double> baselines;
-    for (const size_t e : used_edges) {
-      const DirectionEdge& d = edges[e];
-      baselines.push_back(((origins[local[d.frame_id2]] + d.offset2) -
-                           (origins[local[d.frame_id1]] + d.offset1))
-                              .norm());
-    }
-    if (!baselines.empty()) {
-      std::nth_element(baselines.begin(), baselines.begin() + baselines.size() / 2,
-                       baselines.end());
-      const double median = baselines[baselines.size() / 2];
-      if (median > 0 && std::isfinite(median)) {
-        const Vec3 anchor = origins[fixed[0]];
-        for (size_t i = 0; i < frames.size(); ++i) {
-          if (solved[i]) origins[i] = anchor + (origins[i] - anchor) / median;
-        }
-      }
+    if (!RejectContradictedEdges(options, edges, index, origins, &used_edges, state, &stats)) {
+      break;  // nothing changed: no second round
     }
   }
+  if (!stats.metric && !origins.fixed.empty()) {
+    NormaliseScale(edges, used_edges, index, solved, &origins);
+  }
 
-  // --- Write back ---
-  for (size_t i = 0; i < frames.size(); ++i) {
-    if (!solved[i]) continue;
-    SfmFrame& frame = state->frames.at(frames[i]);
-    frame.rig_from_world.SetTranslation(-(frame.rig_from_world.rotation() * origins[i]));
+  // Write back: rig_from_world.t = -R C.
+  for (size_t i = 0; i < index.frames.size(); ++i) {
+    if (!solved.solved[i]) continue;
+    SfmFrame& frame = state->frames.at(index.frames[i]);
+    frame.rig_from_world.SetTranslation(-(frame.rig_from_world.rotation() * origins.origins[i]));
     ++stats.num_frames_solved;
   }
   stats.seconds = SecondsSince(start);
