@@ -11,8 +11,6 @@
 
 #include <cstdlib>
 #include <filesystem>
-#include <functional>
-#include <nlohmann/json.hpp>
 #include <string>
 #include <utility>
 #include <vector>
@@ -22,6 +20,7 @@
 #include "core/file_utils.h"
 #include "core/io/lidar_constraints_io.h"
 #include "core/io/rig_io.h"
+#include "tests/common/mpi_outputs.h"
 #include "tests/common/test_utils.h"
 
 namespace lisfm {
@@ -30,44 +29,10 @@ namespace {
 
 namespace fs = std::filesystem;
 
-// A JSON summary without its timings (keys containing "seconds", at any depth).
-std::string WithoutSeconds(const std::string& path) {
-  nlohmann::json j = nlohmann::json::parse(ReadFile(path));
-  std::function<void(nlohmann::json&)> strip = [&](nlohmann::json& node) {
-    if (node.is_array()) {
-      for (auto& value : node) strip(value);
-      return;
-    }
-    if (!node.is_object()) return;
-    std::vector<std::string> timing;
-    for (auto& [key, value] : node.items()) {
-      if (key.find("seconds") != std::string::npos) timing.push_back(key);
-    }
-    for (const std::string& key : timing) node.erase(key);
-    for (auto& [key, value] : node.items()) strip(value);
-  };
-  strip(j);
-  return j.dump(1);
-}
-
-// A config file without its output_path line (the folders differ).
-std::string WithoutOutputPath(const std::string& path) {
-  std::string out;
-  for (const std::string& line : SplitString(ReadFile(path), "\n")) {
-    if (line.rfind("output_path:", 0) != 0) out += line + "\n";
-  }
-  return out;
-}
-
 class MpiGlobalMapperTest : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
-    // Open MPI refuses root without these; 3 ranks on 2 cores need oversubscription.
-    setenv("OMPI_ALLOW_RUN_AS_ROOT", "1", 1);
-    setenv("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1", 1);
-    setenv("OMPI_MCA_rmaps_base_oversubscribe", "1", 1);
-    std::string out;
-    have_mpirun_ = test::RunCommand("mpirun --version", &out) == 0;
+    have_mpirun_ = test::PrepareMpirun();
     if (!have_mpirun_) return;
     dir_ = new test::TempDir();
     // 10 frames of a 3-camera rig in a room, noisy keypoints, wrong matches in
@@ -145,11 +110,11 @@ TEST_F(MpiGlobalMapperTest, ModelsDoNotDependOnTheNumberOfRanks) {
     for (const char* f : {"cameras.bin", "images.bin", "points3D.bin", "frames.bin", "rigs.bin"}) {
       EXPECT_TRUE(ReadFile(one + "/0/" + f) == ReadFile(other + "/0/" + f)) << name << ": " << f;
     }
-    EXPECT_EQ(WithoutSeconds(one + "/global_mapper_summary.json"),
-              WithoutSeconds(other + "/global_mapper_summary.json"))
+    EXPECT_EQ(test::JsonWithoutSeconds(one + "/global_mapper_summary.json"),
+              test::JsonWithoutSeconds(other + "/global_mapper_summary.json"))
         << name;
-    EXPECT_EQ(WithoutOutputPath(one + "/global_mapper_config.yaml"),
-              WithoutOutputPath(other + "/global_mapper_config.yaml"))
+    EXPECT_EQ(test::ConfigWithoutOutputPath(one + "/global_mapper_config.yaml"),
+              test::ConfigWithoutOutputPath(other + "/global_mapper_config.yaml"))
         << name;
   }
 }

@@ -9,11 +9,11 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
-#include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
 
 #include "core/file_utils.h"
+#include "tests/common/mpi_outputs.h"
 #include "tests/common/test_utils.h"
 
 namespace lisfm {
@@ -21,37 +21,12 @@ namespace {
 
 namespace fs = std::filesystem;
 
-// A JSON summary without its timings (keys named "seconds" at any depth).
-std::string WithoutSeconds(const std::string& path) {
-  nlohmann::json j = nlohmann::json::parse(ReadFile(path));
-  std::function<void(nlohmann::json&)> strip = [&](nlohmann::json& node) {
-    if (!node.is_object()) return;
-    node.erase("seconds");
-    for (auto& [key, value] : node.items()) strip(value);
-  };
-  strip(j);
-  return j.dump(1);
-}
-
-// A config file without its output_path line (the folders differ).
-std::string WithoutOutputPath(const std::string& path) {
-  std::string out;
-  for (const std::string& line : SplitString(ReadFile(path), "\n")) {
-    if (line.rfind("output_path:", 0) != 0) out += line + "\n";
-  }
-  return out;
-}
-
 class MpiTest : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
-    // Open MPI refuses root without these; 3 ranks on 2 cores need oversubscription.
-    setenv("OMPI_ALLOW_RUN_AS_ROOT", "1", 1);
-    setenv("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1", 1);
-    setenv("OMPI_MCA_rmaps_base_oversubscribe", "1", 1);
-    std::string out;
-    have_mpirun_ = test::RunCommand("mpirun --version", &out) == 0;
+    have_mpirun_ = test::PrepareMpirun();
     if (!have_mpirun_) return;
+    std::string out;
     dir_ = new test::TempDir();
     // 14 s of office at 1 rig frame per second, rests at the start, middle and
     // end: 5 keyframes; pairs between every two of them (min_index_step 1).
@@ -120,11 +95,11 @@ TEST_F(MpiTest, PoseSlamOutputsDoNotDependOnTheNumberOfRanks) {
                           "map.pcd"}) {
       EXPECT_TRUE(ReadFile(one + "/" + f) == ReadFile(other + "/" + f)) << name << ": " << f;
     }
-    EXPECT_EQ(WithoutSeconds(one + "/pose_slam_summary.json"),
-              WithoutSeconds(other + "/pose_slam_summary.json"))
+    EXPECT_EQ(test::JsonWithoutSeconds(one + "/pose_slam_summary.json"),
+              test::JsonWithoutSeconds(other + "/pose_slam_summary.json"))
         << name;
-    EXPECT_EQ(WithoutOutputPath(one + "/pose_slam_config.yaml"),
-              WithoutOutputPath(other + "/pose_slam_config.yaml"))
+    EXPECT_EQ(test::ConfigWithoutOutputPath(one + "/pose_slam_config.yaml"),
+              test::ConfigWithoutOutputPath(other + "/pose_slam_config.yaml"))
         << name;
   }
   // The run had pairs to split (else the test would prove nothing).
@@ -154,8 +129,8 @@ TEST_F(MpiTest, DatabaseImporterOutputsDoNotDependOnTheNumberOfRanks) {
         EXPECT_TRUE(ReadFile(one + "/" + f) == ReadFile(other + "/" + f))
             << source << ", " << ranks << " ranks: " << f;
       }
-      EXPECT_EQ(WithoutSeconds(one + "/importer_summary.json"),
-                WithoutSeconds(other + "/importer_summary.json"))
+      EXPECT_EQ(test::JsonWithoutSeconds(one + "/importer_summary.json"),
+                test::JsonWithoutSeconds(other + "/importer_summary.json"))
           << source << ", " << ranks << " ranks";
     }
     // Co-visibility voted for pairs (else the test would prove nothing).
