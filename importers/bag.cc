@@ -117,6 +117,8 @@ std::string BagRecordError(const std::string& path, uint64_t first_record) {
   const uint64_t file_size = static_cast<uint64_t>(std::max<std::streamoff>(in.tellg(), 0));
   uint64_t pos = first_record;
   std::set<uint64_t> record_starts;
+  std::set<uint64_t> chunk_inner_starts;  // record offsets inside the last chunk
+  bool chunk_checked = false;             // the last chunk is uncompressed (walked)
   std::vector<std::tuple<uint64_t, uint64_t, const char*>> pointers;  // record, offset, field
   const auto read_u32 = [&](uint64_t at, uint32_t* v) {
     in.seekg(static_cast<std::streamoff>(at));
@@ -170,6 +172,48 @@ std::string BagRecordError(const std::string& path, uint64_t first_record) {
       pointers.emplace_back(pos, at, "index_pos");
     } else if (fields["op"] == std::string(1, '\x06') && u64_field("chunk_pos", &at)) {
       pointers.emplace_back(pos, at, "chunk_pos");
+    }
+    if (fields["op"] == std::string(1, '\x05')) {
+      chunk_inner_starts.clear();
+      chunk_checked = fields["compression"] == "none";
+      if (chunk_checked) {
+        // The records inside an uncompressed chunk: each must lie inside the chunk.
+        std::string chunk(data_len, '\0');
+        in.seekg(static_cast<std::streamoff>(data_at + 4));
+        in.read(chunk.data(), data_len);
+        for (uint64_t at = 0; at < chunk.size();) {
+          uint32_t inner_header = 0, inner_data = 0;
+          if (chunk.size() - at < 4) {
+            return fmt::format("chunk at byte {}: record at chunk offset {} cut off", pos, at);
+          }
+          std::memcpy(&inner_header, chunk.data() + at, 4);
+          if (inner_header > chunk.size() - at - 4 || chunk.size() - at - 4 - inner_header < 4) {
+            return fmt::format("chunk at byte {}: record at chunk offset {} has a header of {} "
+                               "bytes past the chunk", pos, at, inner_header);
+          }
+          std::memcpy(&inner_data, chunk.data() + at + 4 + inner_header, 4);
+          if (inner_data > chunk.size() - at - 8 - inner_header) {
+            return fmt::format("chunk at byte {}: record at chunk offset {} has data of {} bytes "
+                               "past the chunk", pos, at, inner_data);
+          }
+          chunk_inner_starts.insert(at);
+          at += 8 + uint64_t{inner_header} + inner_data;
+        }
+      }
+    } else if (fields["op"] == std::string(1, '\x04') && chunk_checked) {
+      // Index data (version 1) of the preceding chunk: (u32 sec, u32 nsec, u32 offset) per
+      // message; rosbag_storage reads a message record at each offset of the chunk.
+      std::string entries(data_len, '\0');
+      in.seekg(static_cast<std::streamoff>(data_at + 4));
+      in.read(entries.data(), data_len);
+      for (size_t e = 0; e + 12 <= entries.size(); e += 12) {
+        uint32_t offset = 0;
+        std::memcpy(&offset, entries.data() + e + 8, 4);
+        if (chunk_inner_starts.count(offset) == 0) {
+          return fmt::format("index at byte {}: message offset {} is not a record start in its "
+                             "chunk", pos, offset);
+        }
+      }
     }
     if (fields["op"] == std::string(1, '\x05')) {  // a chunk
       uint32_t size = 0;

@@ -340,6 +340,34 @@ TEST_F(BagTest, BadBagsAreOneInputErrorNamingBagTopicAndMessage) {
   ExpectImportError(bad_index, velodyne,
                     {bad_index, "record at byte 13: index_pos", "is not the start of a record"});
 
+  // An index entry whose message offset is not a record start inside its (uncompressed)
+  // chunk: rosbag_storage would parse a record header from the middle of one.
+  const std::string moved_offset = dir_->File("moved_offset.bag");
+  {
+    std::string bytes = ReadFile(good);
+    size_t pos = bytes.find('\n') + 1;
+    bool patched = false;
+    while (!patched && pos + 8 <= bytes.size()) {
+      uint32_t header_len = 0, data_len = 0;
+      std::memcpy(&header_len, bytes.data() + pos, 4);
+      const std::string header = bytes.substr(pos + 4, header_len);
+      std::memcpy(&data_len, bytes.data() + pos + 4 + header_len, 4);
+      if (header.find(std::string("op=\x04", 4)) != std::string::npos && data_len >= 12) {
+        const size_t at = pos + 4 + header_len + 4 + 8;  // the first entry's offset
+        uint32_t offset = 0;
+        std::memcpy(&offset, bytes.data() + at, 4);
+        ++offset;
+        std::memcpy(bytes.data() + at, &offset, 4);
+        patched = true;
+      }
+      pos += 8 + size_t{header_len} + data_len;
+    }
+    ASSERT_TRUE(patched);
+    test::WriteText(moved_offset, bytes);
+  }
+  ExpectImportError(moved_offset, velodyne,
+                    {moved_offset, "message offset", "is not a record start in its chunk"});
+
   // A corrupted lz4 chunk in the middle of a bag.
   const std::string corrupted = dir_->File("corrupted.bag");
   {
