@@ -1,9 +1,11 @@
 #include "importers/bag.h"
 
+#include <bzlib.h>
 #include <fmt/format.h>
 #include <glob.h>
 #include <rosbag/bag.h>
 #include <rosbag/view.h>
+#include <roslz4/lz4s.h>
 #include <sensor_msgs/Image.h>
 #include <sensor_msgs/Imu.h>
 #include <sensor_msgs/PointCloud2.h>
@@ -102,12 +104,100 @@ std::string ReadFilePrefix(const std::string& path, size_t n) {
   return s;
 }
 
-// Walks the top-level records of a ROS1 bag (format 2.0: "#ROSBAG V2.0\n", then
-// records: u32 header length, header, u32 data length, data) and returns "" when
-// every record lies inside the file, else what is wrong. rosbag_storage
-// allocates a record's announced lengths before reading them (up to 4 GiB each),
-// and a chunk's uncompressed `size` before decompressing it, so a damaged length
-// must be refused here. Header fields: u32 length, "name=value".
+// Parses a record header (fields: u32 length, "name=value") into `fields` and returns ""
+// or what is wrong. ros::Header::parse, which rosbag_storage uses, reads each field's
+// length and bytes without checking them against the header's end, so every field must
+// lie inside the header, including the 4 bytes of its length.
+std::string ParseHeaderFields(const char* header, size_t size,
+                              std::map<std::string, std::string>* fields) {
+  fields->clear();
+  for (size_t i = 0; i < size;) {
+    if (size - i < 4) {
+      return fmt::format("header ends {} bytes into a field length", size - i);
+    }
+    uint32_t field_len = 0;
+    std::memcpy(&field_len, header + i, 4);
+    if (field_len > size - i - 4) {
+      return fmt::format("header field of {} bytes past the header", field_len);
+    }
+    const std::string field(header + i + 4, field_len);
+    const size_t eq = field.find('=');
+    if (eq != std::string::npos) (*fields)[field.substr(0, eq)] = field.substr(eq + 1);
+    i += 4 + field_len;
+  }
+  return "";
+}
+
+// Walks the records inside a chunk's (uncompressed) data and returns "" when each
+// record, its header fields and its data lie inside the chunk, else what is wrong;
+// `starts` gets each record's offset in the chunk. `chunk_pos` names the chunk.
+std::string ChunkRecordsError(const std::string& chunk, uint64_t chunk_pos,
+                              std::set<uint64_t>* starts) {
+  starts->clear();
+  std::map<std::string, std::string> fields;
+  for (uint64_t at = 0; at < chunk.size();) {
+    uint32_t inner_header = 0, inner_data = 0;
+    if (chunk.size() - at < 4) {
+      return fmt::format("chunk at byte {}: record at chunk offset {} cut off", chunk_pos, at);
+    }
+    std::memcpy(&inner_header, chunk.data() + at, 4);
+    if (inner_header > chunk.size() - at - 4 || chunk.size() - at - 4 - inner_header < 4) {
+      return fmt::format("chunk at byte {}: record at chunk offset {} has a header of {} "
+                         "bytes past the chunk", chunk_pos, at, inner_header);
+    }
+    const std::string field_error =
+        ParseHeaderFields(chunk.data() + at + 4, inner_header, &fields);
+    if (!field_error.empty()) {
+      return fmt::format("chunk at byte {}: record at chunk offset {}: {}", chunk_pos, at,
+                         field_error);
+    }
+    std::memcpy(&inner_data, chunk.data() + at + 4 + inner_header, 4);
+    if (inner_data > chunk.size() - at - 8 - inner_header) {
+      return fmt::format("chunk at byte {}: record at chunk offset {} has data of {} bytes "
+                         "past the chunk", chunk_pos, at, inner_data);
+    }
+    starts->insert(at);
+    at += 8 + uint64_t{inner_header} + inner_data;
+  }
+  return "";
+}
+
+// Decompresses a chunk's data (`compression` none, lz4 or bz2) into `out`, which must
+// come to exactly `size` bytes, as rosbag_storage expects; returns "" or what is wrong.
+std::string DecompressChunk(std::string data, const std::string& compression, uint32_t size,
+                            uint64_t chunk_pos, std::string* out) {
+  if (compression == "none") {
+    *out = std::move(data);
+    return "";
+  }
+  out->assign(size, '\0');
+  unsigned int produced = size;
+  bool ok = false;
+  if (compression == "lz4") {
+    ok = roslz4_buffToBuffDecompress(data.data(), static_cast<unsigned int>(data.size()),
+                                     out->data(), &produced) == ROSLZ4_OK;
+  } else if (compression == "bz2") {
+    ok = BZ2_bzBuffToBuffDecompress(out->data(), &produced, data.data(),
+                                    static_cast<unsigned int>(data.size()), 0, 0) == BZ_OK;
+  } else {
+    return fmt::format("chunk at byte {}: compression '{}' is not none, lz4 or bz2", chunk_pos,
+                       compression);
+  }
+  if (!ok || produced != size) {
+    return fmt::format("chunk at byte {}: its {} data does not decompress to the {} bytes "
+                       "announced", chunk_pos, compression, size);
+  }
+  return "";
+}
+
+// Walks the records of a ROS1 bag (format 2.0: "#ROSBAG V2.0\n", then records: u32
+// header length, header, u32 data length, data) and returns "" when every record lies
+// inside the file, else what is wrong. rosbag_storage allocates a record's announced
+// lengths before reading them (up to 4 GiB each) and a chunk's uncompressed `size`
+// before decompressing it, reads header fields and the records inside a chunk without
+// bounds checks, and reads a message record at every offset an index names: so each
+// top-level record, each record inside every chunk (decompressed here for lz4 / bz2),
+// every header field and every index offset is checked here first.
 // `first_record` is the byte after the version line.
 std::string BagRecordError(const std::string& path, uint64_t first_record) {
   constexpr uint64_t kMaxHeaderBytes = uint64_t{1} << 20;  // headers hold a few fields
@@ -118,12 +208,18 @@ std::string BagRecordError(const std::string& path, uint64_t first_record) {
   uint64_t pos = first_record;
   std::set<uint64_t> record_starts;
   std::set<uint64_t> chunk_inner_starts;  // record offsets inside the last chunk
-  bool chunk_checked = false;             // the last chunk is uncompressed (walked)
   std::vector<std::tuple<uint64_t, uint64_t, const char*>> pointers;  // record, offset, field
   const auto read_u32 = [&](uint64_t at, uint32_t* v) {
     in.seekg(static_cast<std::streamoff>(at));
     return static_cast<bool>(in.read(reinterpret_cast<char*>(v), 4));
   };
+  const auto read_bytes = [&](uint64_t at, uint64_t n) {
+    std::string bytes(n, '\0');
+    in.seekg(static_cast<std::streamoff>(at));
+    in.read(bytes.data(), static_cast<std::streamsize>(n));
+    return bytes;
+  };
+  std::map<std::string, std::string> fields;
   while (pos < file_size) {
     uint32_t header_len = 0, data_len = 0;
     if (file_size - pos < 4 || !read_u32(pos, &header_len)) {
@@ -135,6 +231,9 @@ std::string BagRecordError(const std::string& path, uint64_t first_record) {
                          header_len,
                          file_size - pos - 4);
     }
+    const std::string header = read_bytes(pos + 4, header_len);
+    const std::string field_error = ParseHeaderFields(header.data(), header.size(), &fields);
+    if (!field_error.empty()) return fmt::format("record at byte {}: {}", pos, field_error);
     const uint64_t data_at = pos + 4 + header_len;
     if (file_size - data_at < 4 || !read_u32(data_at, &data_len)) {
       return fmt::format("record at byte {}: the file ends in its data length", pos);
@@ -145,22 +244,6 @@ std::string BagRecordError(const std::string& path, uint64_t first_record) {
                          data_len,
                          file_size - data_at - 4);
     }
-    std::string header(header_len, '\0');
-    in.seekg(static_cast<std::streamoff>(pos + 4));
-    in.read(header.data(), header_len);
-    std::map<std::string, std::string> fields;
-    for (size_t i = 0; i + 4 <= header.size();) {
-      uint32_t field_len = 0;
-      std::memcpy(&field_len, header.data() + i, 4);
-      if (field_len > header.size() - i - 4) {
-        return fmt::format(
-            "record at byte {}: header field of {} bytes past the header", pos, field_len);
-      }
-      const std::string field = header.substr(i + 4, field_len);
-      const size_t eq = field.find('=');
-      if (eq != std::string::npos) fields[field.substr(0, eq)] = field.substr(eq + 1);
-      i += 4 + field_len;
-    }
     const auto u64_field = [&](const char* key, uint64_t* v) {
       if (fields[key].size() != 8) return false;
       std::memcpy(v, fields[key].data(), 8);
@@ -168,44 +251,34 @@ std::string BagRecordError(const std::string& path, uint64_t first_record) {
     };
     record_starts.insert(pos);
     uint64_t at = 0;
-    if (fields["op"] == std::string(1, '\x03') && u64_field("index_pos", &at)) {
+    const std::string op = fields["op"];
+    if (op == std::string(1, '\x03') && u64_field("index_pos", &at)) {
       pointers.emplace_back(pos, at, "index_pos");
-    } else if (fields["op"] == std::string(1, '\x06') && u64_field("chunk_pos", &at)) {
+    } else if (op == std::string(1, '\x06') && u64_field("chunk_pos", &at)) {
       pointers.emplace_back(pos, at, "chunk_pos");
     }
-    if (fields["op"] == std::string(1, '\x05')) {
-      chunk_inner_starts.clear();
-      chunk_checked = fields["compression"] == "none";
-      if (chunk_checked) {
-        // The records inside an uncompressed chunk: each must lie inside the chunk.
-        std::string chunk(data_len, '\0');
-        in.seekg(static_cast<std::streamoff>(data_at + 4));
-        in.read(chunk.data(), data_len);
-        for (uint64_t at = 0; at < chunk.size();) {
-          uint32_t inner_header = 0, inner_data = 0;
-          if (chunk.size() - at < 4) {
-            return fmt::format("chunk at byte {}: record at chunk offset {} cut off", pos, at);
-          }
-          std::memcpy(&inner_header, chunk.data() + at, 4);
-          if (inner_header > chunk.size() - at - 4 || chunk.size() - at - 4 - inner_header < 4) {
-            return fmt::format("chunk at byte {}: record at chunk offset {} has a header of {} "
-                               "bytes past the chunk", pos, at, inner_header);
-          }
-          std::memcpy(&inner_data, chunk.data() + at + 4 + inner_header, 4);
-          if (inner_data > chunk.size() - at - 8 - inner_header) {
-            return fmt::format("chunk at byte {}: record at chunk offset {} has data of {} bytes "
-                               "past the chunk", pos, at, inner_data);
-          }
-          chunk_inner_starts.insert(at);
-          at += 8 + uint64_t{inner_header} + inner_data;
-        }
+    if (op == std::string(1, '\x05')) {  // a chunk
+      uint32_t size = 0;
+      if (fields["size"].size() == 4) std::memcpy(&size, fields["size"].data(), 4);
+      const std::string& compression = fields["compression"];
+      if (size > kMaxChunkBytes || (compression == "none" && size != data_len)) {
+        return fmt::format(
+            "chunk at byte {}: {} uncompressed bytes announced for {} bytes of "
+            "'{}' data",
+            pos,
+            size,
+            data_len,
+            compression);
       }
-    } else if (fields["op"] == std::string(1, '\x04') && chunk_checked) {
+      std::string chunk;
+      std::string error =
+          DecompressChunk(read_bytes(data_at + 4, data_len), compression, size, pos, &chunk);
+      if (error.empty()) error = ChunkRecordsError(chunk, pos, &chunk_inner_starts);
+      if (!error.empty()) return error;
+    } else if (op == std::string(1, '\x04')) {
       // Index data (version 1) of the preceding chunk: (u32 sec, u32 nsec, u32 offset) per
       // message; rosbag_storage reads a message record at each offset of the chunk.
-      std::string entries(data_len, '\0');
-      in.seekg(static_cast<std::streamoff>(data_at + 4));
-      in.read(entries.data(), data_len);
+      const std::string entries = read_bytes(data_at + 4, data_len);
       for (size_t e = 0; e + 12 <= entries.size(); e += 12) {
         uint32_t offset = 0;
         std::memcpy(&offset, entries.data() + e + 8, 4);
@@ -213,19 +286,6 @@ std::string BagRecordError(const std::string& path, uint64_t first_record) {
           return fmt::format("index at byte {}: message offset {} is not a record start in its "
                              "chunk", pos, offset);
         }
-      }
-    }
-    if (fields["op"] == std::string(1, '\x05')) {  // a chunk
-      uint32_t size = 0;
-      if (fields["size"].size() == 4) std::memcpy(&size, fields["size"].data(), 4);
-      if (size > kMaxChunkBytes || (fields["compression"] == "none" && size != data_len)) {
-        return fmt::format(
-            "chunk at byte {}: {} uncompressed bytes announced for {} bytes of "
-            "'{}' data",
-            pos,
-            size,
-            data_len,
-            fields["compression"]);
       }
     }
     pos = data_at + 4 + data_len;

@@ -368,6 +368,48 @@ TEST_F(BagTest, BadBagsAreOneInputErrorNamingBagTopicAndMessage) {
   ExpectImportError(moved_offset, velodyne,
                     {moved_offset, "message offset", "is not a record start in its chunk"});
 
+  // A header field length past its record's header inside an uncompressed chunk
+  // (ros::Header::parse would read past the chunk's buffer).
+  const std::string long_field = dir_->File("long_field.bag");
+  {
+    std::string bytes = ReadFile(good);
+    size_t pos = bytes.find('\n') + 1;
+    bool patched = false;
+    while (!patched && pos + 8 <= bytes.size()) {
+      uint32_t header_len = 0, data_len = 0;
+      std::memcpy(&header_len, bytes.data() + pos, 4);
+      const std::string header = bytes.substr(pos + 4, header_len);
+      std::memcpy(&data_len, bytes.data() + pos + 4 + header_len, 4);
+      if (header.find(std::string("op=\x05", 4)) != std::string::npos) {
+        // chunk data: u32 inner header length, then the inner header's first field length
+        const size_t field_at = pos + 4 + header_len + 4 + 4;
+        const uint32_t too_long = 60000;
+        std::memcpy(bytes.data() + field_at, &too_long, 4);
+        patched = true;
+      }
+      pos += 8 + size_t{header_len} + data_len;
+    }
+    ASSERT_TRUE(patched);
+    test::WriteText(long_field, bytes);
+  }
+  ExpectImportError(long_field, velodyne,
+                    {long_field, "record at chunk offset 0: header field of 60000 bytes past "
+                                 "the header"});
+
+  // A header that ends inside a field length (ros::Header::parse reads all 4 bytes): the
+  // bag header record at byte 13 keeps its first field and 2 bytes of the next one.
+  const std::string cut_field = dir_->File("cut_field.bag");
+  {
+    std::string bytes = ReadFile(good);
+    uint32_t first_field = 0;
+    std::memcpy(&first_field, bytes.data() + 17, 4);
+    const uint32_t header_len = 4 + first_field + 2;
+    std::memcpy(bytes.data() + 13, &header_len, 4);
+    test::WriteText(cut_field, bytes);
+  }
+  ExpectImportError(cut_field, velodyne,
+                    {cut_field, "record at byte 13: header ends 2 bytes into a field length"});
+
   // A corrupted lz4 chunk in the middle of a bag.
   const std::string corrupted = dir_->File("corrupted.bag");
   {
@@ -378,7 +420,8 @@ TEST_F(BagTest, BadBagsAreOneInputErrorNamingBagTopicAndMessage) {
     }
     test::WriteText(corrupted, bytes);
   }
-  ExpectImportError(corrupted, velodyne, {corrupted, "bag read failed after topic"});
+  ExpectImportError(
+      corrupted, velodyne, {corrupted, "lz4 data does not decompress to the"});
 
   // A preset whose IMU topic the bag does not have.
   BagPreset no_imu = velodyne;

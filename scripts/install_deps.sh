@@ -14,7 +14,7 @@ PACKAGES=(
   libopenmpi-dev openmpi-bin
   colmap
   python3-numpy python3-matplotlib
-  librosbag-storage-dev libroscpp-core-dev libroslz4-dev libconsole-bridge-dev
+  librosbag-storage-dev libroscpp-core-dev libroslz4-dev libbz2-dev libconsole-bridge-dev
   libsensor-msgs-dev libstd-msgs-dev libgeometry-msgs-dev
   python3-rosbag python3-sensor-msgs
   pluginlib-dev libclass-loader-dev librcpputils-dev librcutils-dev libament-index-cpp-dev
