@@ -404,11 +404,16 @@ std::optional<std::map<std::pair<int, int>, PairVotes>> ComputeMapCovisibility(
     const std::vector<ImporterImage>& images,
     const std::vector<KeyframeScan>& scans,
     const CovisibilityOptions& options,
-    const WorkListRunner& runner) {
+    const WorkListRunner& runner,
+    MapCovisibilityTimings* timings) {
   THROW_CHECK(options.Check());
   for (const ImporterImage& image : images) {
     THROW_CHECK_LT(static_cast<size_t>(image.camera_index), rig.cameras.size());
   }
+  MapCovisibilityTimings local_timings;
+  if (timings == nullptr) timings = &local_timings;
+  *timings = MapCovisibilityTimings();
+  auto step_start = std::chrono::steady_clock::now();
   std::optional<tbb::global_control> threads;
   if (options.num_threads > 0) {
     threads.emplace(tbb::global_control::max_allowed_parallelism, options.num_threads);
@@ -422,6 +427,8 @@ std::optional<std::map<std::pair<int, int>, PairVotes>> ComputeMapCovisibility(
   }
   const std::vector<Eigen::Vector3f> map = VoxelDownsamplePoints(world, options.scan_voxel_size_m);
   world = {};
+  timings->map = SecondsSince(step_start);
+  step_start = std::chrono::steady_clock::now();
   const int n = static_cast<int>(images.size());
   const double max_range = options.max_point_range_m > 0 ? options.max_point_range_m
                                                          : std::numeric_limits<double>::infinity();
@@ -471,10 +478,12 @@ std::optional<std::map<std::pair<int, int>, PairVotes>> ComputeMapCovisibility(
   std::vector<std::vector<uint32_t>> visible(n);
   if (!runner) {
     tbb::parallel_for(0, n, [&](int a) { visible[a] = visible_points(a); });
+    timings->project = SecondsSince(step_start);
   } else {
     // Every image projects the whole map: equal costs.
     const auto encoded =
         runner(std::vector<double>(n, 1.0), [&](const std::vector<size_t>& subset) {
+          const auto project_start = std::chrono::steady_clock::now();
           std::vector<std::string> out(subset.size());
           tbb::parallel_for(size_t(0), subset.size(), [&](size_t e) {
             const std::vector<uint32_t> v = visible_points(static_cast<int>(subset[e]));
@@ -483,8 +492,10 @@ std::optional<std::map<std::pair<int, int>, PairVotes>> ComputeMapCovisibility(
             for (uint32_t k : v) writer.Put<uint32_t>(k);
             out[e] = writer.Take();
           });
+          timings->project = SecondsSince(project_start);
           return out;
         });
+    timings->exchange = SecondsSince(step_start) - timings->project;
     if (!encoded) return std::nullopt;
     for (int a = 0; a < n; ++a) {
       ByteReader reader((*encoded)[a]);
@@ -492,6 +503,7 @@ std::optional<std::map<std::pair<int, int>, PairVotes>> ComputeMapCovisibility(
       for (uint32_t& k : visible[a]) k = reader.Get<uint32_t>();
     }
   }
+  step_start = std::chrono::steady_clock::now();
   // The images seeing each map point (compressed rows, images ascending).
   std::vector<uint32_t> row_start(map.size() + 1, 0);
   for (int a = 0; a < n; ++a) {
@@ -539,6 +551,7 @@ std::optional<std::map<std::pair<int, int>, PairVotes>> ComputeMapCovisibility(
       if (count[b] > 0) tallies[a].push_back({b, count[b], area[b]});
     }
   });
+  timings->tally = SecondsSince(step_start);
   std::map<std::pair<int, int>, PairVotes> result;
   for (int a = 0; a < n; ++a) {
     for (const Tally& t : tallies[a]) {
@@ -1086,7 +1099,9 @@ DatabaseImporterSummary RunDatabaseImporter(const DatabaseImporterInput& input,
     CheckDirExists(JoinPaths(input.lio_path, "keyframes"), "--lio_path keyframes folder");
     if (options.covisibility.source == "map") {
       for (TimestampNs t : keyframe_stamps) scan_index(t);
-      auto map_votes = ComputeMapCovisibility(rig, images, scans, options.covisibility, runner);
+      summary.seconds_scans = SecondsSince(covis_start);
+      auto map_votes = ComputeMapCovisibility(
+          rig, images, scans, options.covisibility, runner, &summary.map_timings);
       ran_runner = true;
       if (!map_votes) {
         summary.share_only = true;
@@ -1130,6 +1145,7 @@ DatabaseImporterSummary RunDatabaseImporter(const DatabaseImporterInput& input,
     return summary;
   }
   summary.num_covisibility_votes_pairs = votes.size();
+  const auto select_start = std::chrono::steady_clock::now();
   const std::vector<SelectedPair> pairs =
       SelectPairs(rig, images, votes, fallback, options.covisibility);
   summary.priors_fallback = fallback;
@@ -1163,6 +1179,7 @@ DatabaseImporterSummary RunDatabaseImporter(const DatabaseImporterInput& input,
         constraints.size(),
         options.priors.max_frame_time_offset_s);
   }
+  summary.seconds_select = SecondsSince(select_start);
   summary.seconds_covisibility = SecondsSince(covis_start);
 
   // ---- outputs ----
@@ -1268,6 +1285,15 @@ DatabaseImporterSummary RunDatabaseImporter(const DatabaseImporterInput& input,
         summary.num_pairs_priors,
         summary.num_covisibility_votes_pairs,
         summary.priors_fallback ? "true" : "false");
+    json << fmt::format(
+        "  \"covisibility_seconds\": {{\"scans\": {}, \"map\": {}, \"project\": {}, "
+        "\"exchange\": {}, \"tally\": {}, \"select\": {}}},\n",
+        JsonNumber(summary.seconds_scans),
+        JsonNumber(summary.map_timings.map),
+        JsonNumber(summary.map_timings.project),
+        JsonNumber(summary.map_timings.exchange),
+        JsonNumber(summary.map_timings.tally),
+        JsonNumber(summary.seconds_select));
     json << fmt::format(
         "  \"seconds\": {{\"read\": {}, \"covisibility\": {}, \"write\": {}, \"total\": {}}}\n",
         JsonNumber(summary.seconds_read),

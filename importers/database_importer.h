@@ -191,12 +191,20 @@ std::optional<std::map<std::pair<int, int>, PairVotes>> ComputeCovisibility(
     const std::vector<std::pair<int, int>>& scan_pairs,
     const CovisibilityOptions& options,
     const WorkListRunner& runner);
+// Wall seconds of ComputeMapCovisibility's steps on this process.
+struct MapCovisibilityTimings {
+  double map = 0;       // the scans into one voxel map
+  double project = 0;   // this process's images: the map projected, visible points kept
+  double exchange = 0;  // the runners' transfers, incl. waiting for the other processes
+  double tally = 0;     // this process's share of the pair votes
+};
 std::optional<std::map<std::pair<int, int>, PairVotes>> ComputeMapCovisibility(
     const Rig& rig,
     const std::vector<ImporterImage>& images,
     const std::vector<KeyframeScan>& scans,
     const CovisibilityOptions& options,
-    const WorkListRunner& runner);
+    const WorkListRunner& runner,
+    MapCovisibilityTimings* timings = nullptr);
 
 // Camera index pairs (a < b) of the rig whose views overlap (header comment).
 std::vector<std::pair<int, int>> OverlappingRigCameras(const Rig& rig,
@@ -265,6 +273,10 @@ struct DatabaseImporterSummary {
   // the process that writes (RunDatabaseImporter's runner); nothing written.
   bool share_only = false;
   double seconds_read = 0, seconds_covisibility = 0, seconds_write = 0, seconds_total = 0;
+  // Parts of seconds_covisibility: reading the keyframe scans, the map
+  // co-visibility's steps (source "map"), pair selection and the rest.
+  double seconds_scans = 0, seconds_select = 0;
+  MapCovisibilityTimings map_timings;
 };
 
 // Runs the importer and writes every output file into `output_dir` (an
