@@ -477,8 +477,8 @@ std::optional<std::map<std::pair<int, int>, PairVotes>> ComputeMapCovisibility(
     return visible_a;
   };
   std::vector<std::vector<uint32_t>> visible(n);
-  // An image's visible points as varint deltas (ascending indices: most gaps
-  // fit in one or two bytes instead of four).
+  // An image's visible points as varint deltas of the ascending indices (a gap
+  // below 128 takes one byte, below 16384 two, instead of four).
   auto project_share = [&](const std::vector<size_t>& subset) {
     const auto project_start = std::chrono::steady_clock::now();
     std::vector<std::string> out(subset.size());
