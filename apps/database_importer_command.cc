@@ -72,11 +72,12 @@ int RunDatabaseImporter(int argc, char** argv) {
   if (mpi::IsRoot()) output.emplace(output_path, overwrite);  // checked before the work
 
   LogStage("database_importer: " + input.input_path);
-  const DatabaseImporterSummary s =
-      RunDatabaseImporter(input,
-                          importer,
-                          output ? output->path() : std::string(),
-                          mpi::Active() ? WorkListRunner(mpi::RunWorkList) : WorkListRunner());
+  const DatabaseImporterSummary s = RunDatabaseImporter(
+      input,
+      importer,
+      output ? output->path() : std::string(),
+      mpi::Active() ? WorkListRunner(mpi::RunWorkList) : WorkListRunner(),
+      mpi::Active() ? SharedWorkListRunner(mpi::RunSharedWorkList) : SharedWorkListRunner());
   if (s.share_only || !output) return 0;  // this rank's share went to rank 0
   options.WriteConfig(output->File("database_importer_config.yaml"));
   output->Commit();

@@ -38,6 +38,12 @@ using WorkItemsFunction = std::function<std::vector<std::string>(const std::vect
 using WorkListRunner = std::function<std::optional<std::vector<std::string>>(
     const std::vector<double>& costs, const WorkItemsFunction& run)>;
 
+// Like a WorkListRunner, but every process gets every item's result, in list
+// order, and goes on (none stops): for a split stage whose results a further
+// split stage needs on every process. An empty one means: run every item here.
+using SharedWorkListRunner = std::function<std::vector<std::string>(
+    const std::vector<double>& costs, const WorkItemsFunction& run)>;
+
 // Appends values as their bytes (this machine's representation: every process
 // of one run is the same build on the same kind of machine).
 class ByteWriter {
@@ -57,6 +63,15 @@ class ByteWriter {
   void PutSe3(const SE3& pose) {
     PutMatrix(pose.rotation().coeffs());
     PutMatrix(pose.translation());
+  }
+  // An unsigned value in 7-bit groups, low first, the high bit of each byte
+  // set when more follow (LEB128): 1 byte below 128, 2 below 16384.
+  void PutVarint(uint64_t value) {
+    while (value >= 0x80) {
+      bytes_.push_back(static_cast<char>((value & 0x7f) | 0x80));
+      value >>= 7;
+    }
+    bytes_.push_back(static_cast<char>(value));
   }
   void PutString(const std::string& s) {
     Put<uint64_t>(s.size());
@@ -100,6 +115,18 @@ class ByteReader {
     const_cast<Quat&>(pose.rotation()).coeffs() = coeffs;  // pose is not const
     pose.SetTranslation(translation);
     return pose;
+  }
+  // What PutVarint() wrote; a value running past the end or over 64 bits is
+  // a broken invariant (InternalError).
+  uint64_t GetVarint() {
+    uint64_t value = 0;
+    for (int shift = 0;; shift += 7) {
+      THROW_CHECK_LT(offset_, bytes_.size());
+      THROW_CHECK_LT(shift, 64);
+      const auto byte = static_cast<uint8_t>(bytes_[offset_++]);
+      value |= static_cast<uint64_t>(byte & 0x7f) << shift;
+      if ((byte & 0x80) == 0) return value;
+    }
   }
   std::string GetString() {
     const uint64_t n = Get<uint64_t>();

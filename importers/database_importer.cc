@@ -404,11 +404,17 @@ std::optional<std::map<std::pair<int, int>, PairVotes>> ComputeMapCovisibility(
     const std::vector<ImporterImage>& images,
     const std::vector<KeyframeScan>& scans,
     const CovisibilityOptions& options,
-    const WorkListRunner& runner) {
+    const WorkListRunner& runner,
+    const SharedWorkListRunner& shared_runner,
+    MapCovisibilityTimings* timings) {
   THROW_CHECK(options.Check());
   for (const ImporterImage& image : images) {
     THROW_CHECK_LT(static_cast<size_t>(image.camera_index), rig.cameras.size());
   }
+  MapCovisibilityTimings local_timings;
+  if (timings == nullptr) timings = &local_timings;
+  *timings = MapCovisibilityTimings();
+  auto step_start = std::chrono::steady_clock::now();
   std::optional<tbb::global_control> threads;
   if (options.num_threads > 0) {
     threads.emplace(tbb::global_control::max_allowed_parallelism, options.num_threads);
@@ -422,6 +428,8 @@ std::optional<std::map<std::pair<int, int>, PairVotes>> ComputeMapCovisibility(
   }
   const std::vector<Eigen::Vector3f> map = VoxelDownsamplePoints(world, options.scan_voxel_size_m);
   world = {};
+  timings->map = SecondsSince(step_start);
+  step_start = std::chrono::steady_clock::now();
   const int n = static_cast<int>(images.size());
   const double max_range = options.max_point_range_m > 0 ? options.max_point_range_m
                                                          : std::numeric_limits<double>::infinity();
@@ -469,29 +477,57 @@ std::optional<std::map<std::pair<int, int>, PairVotes>> ComputeMapCovisibility(
     return visible_a;
   };
   std::vector<std::vector<uint32_t>> visible(n);
+  // An image's visible points as varint deltas of the ascending indices (a gap
+  // below 128 takes one byte, below 16384 two, instead of four).
+  auto project_share = [&](const std::vector<size_t>& subset) {
+    const auto project_start = std::chrono::steady_clock::now();
+    std::vector<std::string> out(subset.size());
+    tbb::parallel_for(size_t(0), subset.size(), [&](size_t e) {
+      const std::vector<uint32_t> v = visible_points(static_cast<int>(subset[e]));
+      ByteWriter writer;
+      writer.PutVarint(v.size());
+      uint32_t previous = 0;
+      for (uint32_t k : v) {
+        writer.PutVarint(k - previous);
+        previous = k;
+      }
+      out[e] = writer.Take();
+    });
+    timings->project = SecondsSince(project_start);
+    return out;
+  };
+  auto decode_visible = [&](const std::vector<std::string>& encoded) {
+    tbb::parallel_for(0, n, [&](int a) {
+      ByteReader reader(encoded[a]);
+      visible[a].resize(reader.GetVarint());
+      uint32_t previous = 0;
+      for (uint32_t& k : visible[a]) {
+        k = previous + static_cast<uint32_t>(reader.GetVarint());
+        previous = k;
+      }
+      THROW_CHECK(reader.AtEnd());
+    });
+  };
+  // Every image projects the whole map: equal costs.
+  const std::vector<double> project_costs(n, 1.0);
+  // With both runners every process gets every visible list (the votes are
+  // then split too); with `runner` alone the lists go to the process that
+  // continues, which counts all votes.
+  const bool split_votes = runner && shared_runner;
   if (!runner) {
     tbb::parallel_for(0, n, [&](int a) { visible[a] = visible_points(a); });
+    timings->project = SecondsSince(step_start);
+  } else if (split_votes) {
+    const std::vector<std::string> encoded = shared_runner(project_costs, project_share);
+    timings->exchange = SecondsSince(step_start) - timings->project;
+    decode_visible(encoded);
   } else {
-    // Every image projects the whole map: equal costs.
-    const auto encoded =
-        runner(std::vector<double>(n, 1.0), [&](const std::vector<size_t>& subset) {
-          std::vector<std::string> out(subset.size());
-          tbb::parallel_for(size_t(0), subset.size(), [&](size_t e) {
-            const std::vector<uint32_t> v = visible_points(static_cast<int>(subset[e]));
-            ByteWriter writer;
-            writer.Put<uint64_t>(v.size());
-            for (uint32_t k : v) writer.Put<uint32_t>(k);
-            out[e] = writer.Take();
-          });
-          return out;
-        });
+    const auto encoded = runner(project_costs, project_share);
+    timings->exchange = SecondsSince(step_start) - timings->project;
     if (!encoded) return std::nullopt;
-    for (int a = 0; a < n; ++a) {
-      ByteReader reader((*encoded)[a]);
-      visible[a].resize(reader.Get<uint64_t>());
-      for (uint32_t& k : visible[a]) k = reader.Get<uint32_t>();
-    }
+    decode_visible(*encoded);
   }
+  step_start = std::chrono::steady_clock::now();
   // The images seeing each map point (compressed rows, images ascending).
   std::vector<uint32_t> row_start(map.size() + 1, 0);
   for (int a = 0; a < n; ++a) {
@@ -505,18 +541,25 @@ std::optional<std::map<std::pair<int, int>, PairVotes>> ComputeMapCovisibility(
       for (uint32_t k : visible[a]) seen_by[fill[k]++] = a;
     }
   }
+  // Index in seen_by of the first image b > a seeing map point k.
+  auto first_after = [&](uint32_t k, int a) {
+    return static_cast<uint32_t>(
+        std::upper_bound(seen_by.begin() + row_start[k], seen_by.begin() + row_start[k + 1], a) -
+        seen_by.begin());
+  };
   // Votes of each image a with the images b > a.
   const double min_cos = std::cos(options.max_view_angle_deg * M_PI / 180.0);
   // Per image a: (b, votes, solid-angle weight) for the images b > a.
   struct Tally {
-    int b;
+    int32_t b;
     int64_t count;
     double area;
   };
   const double voxel_sq =
       options.scan_voxel_size_m > 0 ? options.scan_voxel_size_m * options.scan_voxel_size_m : 1.0;
-  std::vector<std::vector<Tally>> tallies(n);
-  tbb::parallel_for(0, n, [&](int a) {
+  // The sums run over a's visible points in ascending order wherever a is
+  // counted, so a's tallies are the same bits in any process.
+  auto tally = [&](int a) {
     std::vector<int64_t> count(n, 0);
     std::vector<double> area(n, 0.0);
     const Vec3 ca = images[a].world_from_cam.translation();
@@ -525,9 +568,8 @@ std::optional<std::map<std::pair<int, int>, PairVotes>> ComputeMapCovisibility(
       const Vec3 da = p - ca;
       const double range_a = da.norm();
       const Vec3 ra = da / range_a;
-      for (uint32_t e = row_start[k]; e < row_start[k + 1]; ++e) {
+      for (uint32_t e = first_after(k, a); e < row_start[k + 1]; ++e) {
         const int b = seen_by[e];
-        if (b <= a) continue;
         const Vec3 db = p - images[b].world_from_cam.translation();
         const double range_b = db.norm();
         if (ra.dot(db) < min_cos * range_b) continue;
@@ -535,10 +577,56 @@ std::optional<std::map<std::pair<int, int>, PairVotes>> ComputeMapCovisibility(
         area[b] += voxel_sq / (range_a * range_b);
       }
     }
+    std::vector<Tally> out;
     for (int b = a + 1; b < n; ++b) {
-      if (count[b] > 0) tallies[a].push_back({b, count[b], area[b]});
+      if (count[b] > 0) out.push_back({b, count[b], area[b]});
     }
-  });
+    return out;
+  };
+  std::vector<std::vector<Tally>> tallies(n);
+  if (!split_votes) {
+    tbb::parallel_for(0, n, [&](int a) { tallies[a] = tally(a); });
+    timings->tally = SecondsSince(step_start);
+  } else {
+    // Cost of image a: its (point, image b > a) visits, plus its pass over
+    // the n images.
+    std::vector<double> costs(n);
+    tbb::parallel_for(0, n, [&](int a) {
+      double c = 0.25 * n;
+      for (uint32_t k : visible[a]) c += row_start[k + 1] - first_after(k, a);
+      costs[a] = c;
+    });
+    const auto tally_start = std::chrono::steady_clock::now();
+    const auto encoded = runner(costs, [&](const std::vector<size_t>& subset) {
+      const auto share_start = std::chrono::steady_clock::now();
+      std::vector<std::string> out(subset.size());
+      tbb::parallel_for(size_t(0), subset.size(), [&](size_t e) {
+        ByteWriter writer;
+        const std::vector<Tally> t = tally(static_cast<int>(subset[e]));
+        writer.Put<uint64_t>(t.size());
+        for (const Tally& x : t) {
+          writer.Put<int32_t>(x.b);
+          writer.Put<int64_t>(x.count);
+          writer.Put<double>(x.area);
+        }
+        out[e] = writer.Take();
+      });
+      timings->tally = SecondsSince(share_start);
+      return out;
+    });
+    timings->exchange += SecondsSince(tally_start) - timings->tally;
+    if (!encoded) return std::nullopt;
+    for (int a = 0; a < n; ++a) {
+      ByteReader reader((*encoded)[a]);
+      tallies[a].resize(reader.Get<uint64_t>());
+      for (Tally& x : tallies[a]) {
+        x.b = reader.Get<int32_t>();
+        x.count = reader.Get<int64_t>();
+        x.area = reader.Get<double>();
+      }
+      THROW_CHECK(reader.AtEnd());
+    }
+  }
   std::map<std::pair<int, int>, PairVotes> result;
   for (int a = 0; a < n; ++a) {
     for (const Tally& t : tallies[a]) {
@@ -841,7 +929,8 @@ std::string JsonNumber(double v) { return fmt::format("{:.6g}", v); }
 DatabaseImporterSummary RunDatabaseImporter(const DatabaseImporterInput& input,
                                             const DatabaseImporterOptions& options,
                                             const std::string& output_dir,
-                                            const WorkListRunner& runner) {
+                                            const WorkListRunner& runner,
+                                            const SharedWorkListRunner& shared_runner) {
   THROW_CHECK(options.Check());
   const auto start = std::chrono::steady_clock::now();
   DatabaseImporterSummary summary;
@@ -1086,7 +1175,9 @@ DatabaseImporterSummary RunDatabaseImporter(const DatabaseImporterInput& input,
     CheckDirExists(JoinPaths(input.lio_path, "keyframes"), "--lio_path keyframes folder");
     if (options.covisibility.source == "map") {
       for (TimestampNs t : keyframe_stamps) scan_index(t);
-      auto map_votes = ComputeMapCovisibility(rig, images, scans, options.covisibility, runner);
+      summary.seconds_scans = SecondsSince(covis_start);
+      auto map_votes = ComputeMapCovisibility(
+          rig, images, scans, options.covisibility, runner, shared_runner, &summary.map_timings);
       ran_runner = true;
       if (!map_votes) {
         summary.share_only = true;
@@ -1130,6 +1221,7 @@ DatabaseImporterSummary RunDatabaseImporter(const DatabaseImporterInput& input,
     return summary;
   }
   summary.num_covisibility_votes_pairs = votes.size();
+  const auto select_start = std::chrono::steady_clock::now();
   const std::vector<SelectedPair> pairs =
       SelectPairs(rig, images, votes, fallback, options.covisibility);
   summary.priors_fallback = fallback;
@@ -1163,6 +1255,7 @@ DatabaseImporterSummary RunDatabaseImporter(const DatabaseImporterInput& input,
         constraints.size(),
         options.priors.max_frame_time_offset_s);
   }
+  summary.seconds_select = SecondsSince(select_start);
   summary.seconds_covisibility = SecondsSince(covis_start);
 
   // ---- outputs ----
@@ -1268,6 +1361,15 @@ DatabaseImporterSummary RunDatabaseImporter(const DatabaseImporterInput& input,
         summary.num_pairs_priors,
         summary.num_covisibility_votes_pairs,
         summary.priors_fallback ? "true" : "false");
+    json << fmt::format(
+        "  \"covisibility_seconds\": {{\"scans\": {}, \"map\": {}, \"project\": {}, "
+        "\"exchange\": {}, \"tally\": {}, \"select\": {}}},\n",
+        JsonNumber(summary.seconds_scans),
+        JsonNumber(summary.map_timings.map),
+        JsonNumber(summary.map_timings.project),
+        JsonNumber(summary.map_timings.exchange),
+        JsonNumber(summary.map_timings.tally),
+        JsonNumber(summary.seconds_select));
     json << fmt::format(
         "  \"seconds\": {{\"read\": {}, \"covisibility\": {}, \"write\": {}, \"total\": {}}}\n",
         JsonNumber(summary.seconds_read),

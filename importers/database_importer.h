@@ -180,10 +180,13 @@ std::map<std::pair<int, int>, PairVotes> ComputeMapCovisibility(
 
 // The same with the heavy part run by `runner` (core/work_list.h; empty: here):
 // the scan pairs' votes (ComputeCovisibility), the images' visible map points
-// (ComputeMapCovisibility; the votes from them are counted where the runner
-// returns the results). std::nullopt where the runner returned std::nullopt (an
-// MPI rank other than 0: its share went to rank 0). Results do not depend on
-// how the runner splits the work.
+// (ComputeMapCovisibility). With `shared_runner` too, ComputeMapCovisibility
+// runs the projection with it (every process gets every image's visible points)
+// and then splits the vote count over the images a (pairs (a, b > a)) with
+// `runner`; without, the votes are counted where `runner` returns the lists.
+// std::nullopt where the runner returned std::nullopt (an MPI rank other than
+// 0: its share went to rank 0). Results do not depend on how the runners split
+// the work.
 std::optional<std::map<std::pair<int, int>, PairVotes>> ComputeCovisibility(
     const Rig& rig,
     const std::vector<ImporterImage>& images,
@@ -191,12 +194,21 @@ std::optional<std::map<std::pair<int, int>, PairVotes>> ComputeCovisibility(
     const std::vector<std::pair<int, int>>& scan_pairs,
     const CovisibilityOptions& options,
     const WorkListRunner& runner);
+// Wall seconds of ComputeMapCovisibility's steps on this process.
+struct MapCovisibilityTimings {
+  double map = 0;       // the scans into one voxel map
+  double project = 0;   // this process's images: the map projected, visible points kept
+  double exchange = 0;  // the runners' transfers, incl. waiting for the other processes
+  double tally = 0;     // this process's share of the pair votes
+};
 std::optional<std::map<std::pair<int, int>, PairVotes>> ComputeMapCovisibility(
     const Rig& rig,
     const std::vector<ImporterImage>& images,
     const std::vector<KeyframeScan>& scans,
     const CovisibilityOptions& options,
-    const WorkListRunner& runner);
+    const WorkListRunner& runner,
+    const SharedWorkListRunner& shared_runner = {},
+    MapCovisibilityTimings* timings = nullptr);
 
 // Camera index pairs (a < b) of the rig whose views overlap (header comment).
 std::vector<std::pair<int, int>> OverlappingRigCameras(const Rig& rig,
@@ -265,6 +277,10 @@ struct DatabaseImporterSummary {
   // the process that writes (RunDatabaseImporter's runner); nothing written.
   bool share_only = false;
   double seconds_read = 0, seconds_covisibility = 0, seconds_write = 0, seconds_total = 0;
+  // Parts of seconds_covisibility: reading the keyframe scans, the map
+  // co-visibility's steps (source "map"), pair selection and the rest.
+  double seconds_scans = 0, seconds_select = 0;
+  MapCovisibilityTimings map_timings;
 };
 
 // Runs the importer and writes every output file into `output_dir` (an
@@ -274,9 +290,12 @@ struct DatabaseImporterSummary {
 // ComputeCovisibility) and is called exactly once (with an empty list when
 // there is no co-visibility to compute); where it returns std::nullopt the
 // importer returns right after it with share_only and writes nothing.
+// `shared_runner`, if set, runs the map co-visibility's projection before it
+// (ComputeMapCovisibility).
 DatabaseImporterSummary RunDatabaseImporter(const DatabaseImporterInput& input,
                                             const DatabaseImporterOptions& options,
                                             const std::string& output_dir,
-                                            const WorkListRunner& runner = {});
+                                            const WorkListRunner& runner = {},
+                                            const SharedWorkListRunner& shared_runner = {});
 
 }  // namespace lisfm

@@ -6,8 +6,9 @@
 # oversubscribed on this 2-core machine) of 1 thread each. Prints markdown tables for
 # docs/BENCHMARKS.md (also WORK_DIR/bench_mpi.md): wall time of the distributed stage
 # (constraints: cloud loading + ICP pairs incl. waiting for the other ranks;
-# co-visibility; two-view step incl. the gather), rank 0's serial part (pose graph
-# build, solves, covariances, map; global_mapper: everything after the view graph),
+# co-visibility, and its steps on rank 0; two-view step incl. the gather), rank 0's
+# serial part (pose graph build, solves, covariances, map; global_mapper: everything
+# after the view graph),
 # parallel efficiency against 1 rank x 1 thread, and whether every output is
 # byte-identical to the normal run.
 #
@@ -34,7 +35,7 @@ RATE=0.5
 WORK_DIR=/tmp/lisfm_bench_mpi
 KEEP=0
 PIPELINE=
-usage() { sed -n '2,29p' "${BASH_SOURCE[0]}" | sed 's/^# \{0,1\}//'; }
+usage() { sed -n '2,28p' "${BASH_SOURCE[0]}" | sed 's/^# \{0,1\}//'; }
 while [ $# -gt 0 ]; do
   case "$1" in
     --scene) SCENE=$2; shift 2 ;;
@@ -75,8 +76,7 @@ now() { date +%s.%N; }
 # run NAME RANKS THREADS: pose_slam then database_importer; RANKS 0 = no mpirun.
 run() {
   local name=$1 ranks=$2 threads=$3 launcher=() ps_threads=() db_threads=()
-  # Unbound ranks: bound to one core, SuiteSparse's OpenMP runs one thread and
-  # pose_slam's covariances change in their last digits.
+  # Unbound ranks: each may use both cores, as the single process does.
   [ "$ranks" -gt 0 ] && launcher=(mpirun --oversubscribe --bind-to none -np "$ranks")
   if [ "$threads" -gt 0 ]; then
     ps_threads=(--num_threads "$threads" --Solver.num_threads "$threads")
@@ -123,7 +123,8 @@ for line in open(os.path.join(work, "times.txt")):
                      ps_wall=float(t1) - float(t0), db_wall=float(t2) - float(t1),
                      constraints=s["load_clouds"] + s["icp"],
                      serial=s["build"] + s["solve"] + s["second_solve"] + s["covariances"] + s["map"],
-                     covis=db["seconds"]["covisibility"], pairs=ps["pairs"]["registered"]))
+                     covis=db["seconds"]["covisibility"], pairs=ps["pairs"]["registered"],
+                     covis_steps=db["covisibility_seconds"]))
     gm = json.load(open(os.path.join(work, f"gm_{name}", "global_mapper_summary.json")))
     runs[-1].update(gm_wall=float(t3) - float(t2), two_view=gm["view_graph"]["seconds"],
                     gm_serial=gm["total_seconds"] - gm["view_graph"]["seconds"],
@@ -155,6 +156,14 @@ for r in runs:
     print(f"| {r['name']} | {label} | {r['ps_wall']:.1f} | {r['constraints']:.1f} | "
           f"{r['serial']:.1f} | {r['db_wall']:.1f} | {r['covis']:.1f} | {100 * eff_c:.0f} % | "
           f"{100 * eff_v:.0f} % | {'yes' if same(r['name']) else 'NO'} |")
+print("\nco-visibility steps on rank 0, s (scans: reading the keyframe scans; map: the voxel map, "
+      "on every rank; project: its share of the images; exchange: the transfers incl. waiting; "
+      "tally: its share of the votes; select: pair selection, rank 0 alone):\n")
+steps = ["scans", "map", "project", "exchange", "tally", "select"]
+print("| run | " + " | ".join(steps) + " |")
+print("|---|" + "---|" * len(steps))
+for r in runs:
+    print(f"| {r['name']} | " + " | ".join(f"{r['covis_steps'][k]:.2f}" for k in steps) + " |")
 serial_share = base["serial"] / (base["constraints"] + base["serial"])
 print(f"\nrank 0's serial part of pose_slam (1 x 1): {base['serial']:.1f} s = "
       f"{100 * serial_share:.1f} % of constraints + serial.")

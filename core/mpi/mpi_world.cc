@@ -53,6 +53,93 @@ int ExchangeExitCode(int exit_code) {
   return exit_code != 0 ? exit_code : static_cast<int>(root_code);
 }
 
+// Every item here (no MPI): the results as `run` returned them.
+std::vector<std::string> RunAllHere(size_t n, const WorkItemsFunction& run) {
+  std::vector<size_t> all(n);
+  std::iota(all.begin(), all.end(), size_t(0));
+  std::vector<std::string> results = run(all);
+  THROW_CHECK_EQ(results.size(), n);
+  return results;
+}
+
+// Runs this rank's part [bounds[rank], bounds[rank + 1]) and returns its
+// message: [int64 code][the results, each as a PutString, or the error
+// message]; code 0 = success, 2 = UsageError, 1 = any other exception.
+std::string RunShare(const std::vector<size_t>& bounds, const WorkItemsFunction& run) {
+  std::vector<size_t> mine;
+  for (size_t i = bounds[g_rank]; i < bounds[g_rank + 1]; ++i) mine.push_back(i);
+  int64_t code = 0;
+  std::string payload;
+  try {
+    const std::vector<std::string> results = run(mine);
+    THROW_CHECK_EQ(results.size(), mine.size());
+    ByteWriter writer;
+    for (const std::string& r : results) writer.PutString(r);
+    payload = writer.Take();
+  } catch (const UsageError& e) {
+    code = 2;
+    payload = e.what();
+  } catch (const std::exception& e) {
+    code = 1;
+    payload = e.what();
+  }
+  ByteWriter head;
+  head.Put<int64_t>(code);
+  std::string message = head.Take() + payload;
+  THROW_CHECK_LT(message.size(), static_cast<size_t>(INT_MAX));
+  return message;
+}
+
+// Displacements of the ranks' messages of `sizes` bytes, plus the total at the
+// end (sizes.size() + 1 values).
+std::vector<int> Offsets(const std::vector<int>& sizes) {
+  std::vector<int> offsets(sizes.size() + 1, 0);
+  int64_t total = 0;
+  for (size_t r = 0; r < sizes.size(); ++r) {
+    offsets[r] = static_cast<int>(total);
+    total += sizes[r];
+    THROW_CHECK_LT(total, static_cast<int64_t>(INT_MAX));
+  }
+  offsets.back() = static_cast<int>(total);
+  return offsets;
+}
+
+// The code of the lowest rank whose message in `all` holds an error (0: none),
+// and its message naming the rank in *error.
+int64_t FirstError(const std::string& all,
+                   const std::vector<int>& sizes,
+                   const std::vector<int>& offsets,
+                   std::string* error) {
+  for (int r = 0; r < g_size; ++r) {
+    const std::string part = all.substr(offsets[r], sizes[r]);
+    ByteReader reader(part);
+    const int64_t code = reader.Get<int64_t>();
+    if (code != 0) {
+      *error = part.substr(sizeof(int64_t));
+      if (g_size > 1) *error += fmt::format(" (MPI rank {} of {})", r, g_size);
+      return code;
+    }
+  }
+  return 0;
+}
+
+// Every item's result, in list order, from the ranks' successful messages.
+std::vector<std::string> Results(const std::string& all,
+                                 const std::vector<size_t>& bounds,
+                                 const std::vector<int>& sizes,
+                                 const std::vector<int>& offsets) {
+  std::vector<std::string> results;
+  results.reserve(bounds.back());
+  for (int r = 0; r < g_size; ++r) {
+    const std::string part = all.substr(offsets[r], sizes[r]);
+    ByteReader reader(part);
+    reader.Get<int64_t>();
+    for (size_t i = bounds[r]; i < bounds[r + 1]; ++i) results.push_back(reader.GetString());
+    THROW_CHECK(reader.AtEnd());
+  }
+  return results;
+}
+
 }  // namespace
 
 bool StartedByLauncher() {
@@ -103,37 +190,9 @@ std::vector<size_t> SplitByCost(const std::vector<double>& costs, int num_parts)
 std::optional<std::vector<std::string>> RunWorkList(const std::vector<double>& costs,
                                                     const WorkItemsFunction& run) {
   const size_t n = costs.size();
-  if (!g_active) {
-    std::vector<size_t> all(n);
-    std::iota(all.begin(), all.end(), size_t(0));
-    std::vector<std::string> results = run(all);
-    THROW_CHECK_EQ(results.size(), n);
-    return results;
-  }
+  if (!g_active) return RunAllHere(n, run);
   const std::vector<size_t> bounds = SplitByCost(costs, g_size);
-  std::vector<size_t> mine;
-  for (size_t i = bounds[g_rank]; i < bounds[g_rank + 1]; ++i) mine.push_back(i);
-
-  // This rank's message: [code][results, or the error message].
-  int64_t code = 0;
-  std::string payload;
-  try {
-    const std::vector<std::string> results = run(mine);
-    THROW_CHECK_EQ(results.size(), mine.size());
-    ByteWriter writer;
-    for (const std::string& r : results) writer.PutString(r);
-    payload = writer.Take();
-  } catch (const UsageError& e) {
-    code = 2;
-    payload = e.what();
-  } catch (const std::exception& e) {
-    code = 1;
-    payload = e.what();
-  }
-  ByteWriter head;
-  head.Put<int64_t>(code);
-  std::string message = head.Take() + payload;
-  THROW_CHECK_LT(message.size(), static_cast<size_t>(INT_MAX));
+  std::string message = RunShare(bounds, run);
 
   // Gather the sizes, then the bytes, on rank 0.
   const int size = static_cast<int>(message.size());
@@ -142,17 +201,8 @@ std::optional<std::vector<std::string>> RunWorkList(const std::vector<double>& c
   Check(MPI_Igather(&size, 1, MPI_INT, sizes.data(), 1, MPI_INT, 0, MPI_COMM_WORLD, &request),
         "MPI_Igather");
   Wait(&request);
-  std::vector<int> offsets(sizes.size(), 0);
-  std::string all;
-  if (g_rank == 0) {
-    int64_t total = 0;
-    for (int r = 0; r < g_size; ++r) {
-      offsets[r] = static_cast<int>(total);
-      total += sizes[r];
-    }
-    THROW_CHECK_LT(total, static_cast<int64_t>(INT_MAX));
-    all.resize(static_cast<size_t>(total));
-  }
+  const std::vector<int> offsets = Offsets(sizes);
+  std::string all(g_rank == 0 ? static_cast<size_t>(offsets.back()) : 0, '\0');
   Check(MPI_Igatherv(message.data(),
                      size,
                      MPI_CHAR,
@@ -171,18 +221,8 @@ std::optional<std::vector<std::string>> RunWorkList(const std::vector<double>& c
   int64_t outcome[2] = {0, 0};  // code, length of the error message
   std::string error;
   if (g_rank == 0) {
-    for (int r = 0; r < g_size; ++r) {
-      const std::string part = all.substr(offsets[r], sizes[r]);
-      ByteReader reader(part);
-      const int64_t c = reader.Get<int64_t>();
-      if (c != 0) {
-        outcome[0] = c;
-        error = part.substr(sizeof(int64_t));
-        if (g_size > 1) error += fmt::format(" (MPI rank {} of {})", r, g_size);
-        outcome[1] = static_cast<int64_t>(error.size());
-        break;
-      }
-    }
+    outcome[0] = FirstError(all, sizes, offsets, &error);
+    outcome[1] = static_cast<int64_t>(error.size());
   }
   BroadcastInts(outcome, 2);
   if (outcome[0] != 0) {
@@ -195,18 +235,43 @@ std::optional<std::vector<std::string>> RunWorkList(const std::vector<double>& c
   }
   g_released = true;
   if (g_rank != 0) return std::nullopt;
+  return Results(all, bounds, sizes, offsets);
+}
 
-  std::vector<std::string> results;
-  results.reserve(n);
-  for (int r = 0; r < g_size; ++r) {
-    const std::string part = all.substr(offsets[r], sizes[r]);
-    ByteReader reader(part);
-    reader.Get<int64_t>();
-    for (size_t i = bounds[r]; i < bounds[r + 1]; ++i) results.push_back(reader.GetString());
-    THROW_CHECK(reader.AtEnd());
-  }
-  THROW_CHECK_EQ(results.size(), n);
-  return results;
+std::vector<std::string> RunSharedWorkList(const std::vector<double>& costs,
+                                           const WorkItemsFunction& run) {
+  const size_t n = costs.size();
+  if (!g_active) return RunAllHere(n, run);
+  const std::vector<size_t> bounds = SplitByCost(costs, g_size);
+  std::string message = RunShare(bounds, run);
+
+  // Every rank gets the sizes, then the bytes, of every rank.
+  const int size = static_cast<int>(message.size());
+  std::vector<int> sizes(g_size);
+  MPI_Request request;
+  Check(MPI_Iallgather(&size, 1, MPI_INT, sizes.data(), 1, MPI_INT, MPI_COMM_WORLD, &request),
+        "MPI_Iallgather");
+  Wait(&request);
+  const std::vector<int> offsets = Offsets(sizes);
+  std::string all(static_cast<size_t>(offsets.back()), '\0');
+  Check(MPI_Iallgatherv(message.data(),
+                        size,
+                        MPI_CHAR,
+                        all.data(),
+                        sizes.data(),
+                        offsets.data(),
+                        MPI_CHAR,
+                        MPI_COMM_WORLD,
+                        &request),
+        "MPI_Iallgatherv");
+  Wait(&request);
+  message.clear();
+
+  // Every rank sees every outcome and throws the same error.
+  std::string error;
+  const int64_t code = FirstError(all, sizes, offsets, &error);
+  if (code != 0) throw RankError(error, static_cast<int>(code));
+  return Results(all, bounds, sizes, offsets);
 }
 
 int Finish(int exit_code, bool collective_error) {

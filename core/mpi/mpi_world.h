@@ -4,7 +4,9 @@
 // OMPI_COMM_WORLD_SIZE, PMI_SIZE or PMIX_RANK in its environment) never calls
 // MPI_Init and behaves as one process of size 1, rank 0.
 //
-// Protocol of a command that distributes a work list (RunWorkList):
+// Protocol of a command that distributes a work list (RunWorkList; a
+// RunSharedWorkList before it follows steps 1-3 with every rank getting every
+// result in step 4, so that a further split stage can use them):
 //  1. every rank reads the same inputs and builds the same list;
 //  2. each rank runs its share (SplitByCost) and sends the encoded results to
 //     rank 0; a rank whose share throws sends the error instead;
@@ -55,6 +57,14 @@ std::vector<size_t> SplitByCost(const std::vector<double>& costs, int num_parts)
 // (on every rank) when a rank's share threw.
 std::optional<std::vector<std::string>> RunWorkList(const std::vector<double>& costs,
                                                     const WorkItemsFunction& run);
+
+// A SharedWorkListRunner (core/work_list.h) over all processes: each rank runs
+// its share (SplitByCost) and every rank gets every result, in list order
+// (MPI_Allgatherv of the encoded results; no rank stops, nothing is released).
+// When a share throws, every rank throws the RankError of the lowest failing
+// rank. Without MPI runs every item here.
+std::vector<std::string> RunSharedWorkList(const std::vector<double>& costs,
+                                           const WorkItemsFunction& run);
 
 // The error of the rank whose share failed, thrown on every rank. Its message
 // is that rank's message; exit_code() is 2 for a UsageError, else 1.

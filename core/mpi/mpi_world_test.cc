@@ -1,12 +1,20 @@
-// The parts of core/mpi that do not need mpirun: the cost-balanced split, the
-// single-process work list, and the exact byte encoding of results. The runs
-// under mpirun are in tests/e2e/mpi_test.cc.
+// core/mpi: the cost-balanced split, the single-process work lists, the exact
+// byte encoding of results, and the collectives under `mpirun -np 2` and
+// `--oversubscribe -np 3` (mpi_world_probe; skipped with a message without
+// mpirun). The commands under mpirun are in tests/e2e/mpi_test.cc.
 #include "core/mpi/mpi_world.h"
 
 #include <gtest/gtest.h>
+#include <sys/wait.h>
 
+#include <array>
+#include <cstdio>
+#include <cstdlib>
 #include <cstring>
+#include <map>
 #include <random>
+#include <sstream>
+#include <string>
 
 namespace lisfm {
 namespace {
@@ -69,6 +77,119 @@ TEST(RunWorkList, WithoutMpiRunsEveryItemHereInOrder) {
                                   throw InputError("f.pcd", "", "corrupt");
                                 }),
                InputError);
+}
+
+TEST(RunSharedWorkList, WithoutMpiRunsEveryItemHereInOrder) {
+  ASSERT_FALSE(mpi::Active());
+  const std::vector<std::string> results =
+      mpi::RunSharedWorkList({3, 1, 2}, [](const std::vector<size_t>& items) {
+        std::vector<std::string> out;
+        for (size_t i : items) out.push_back(std::to_string(10 * i));
+        return out;
+      });
+  EXPECT_EQ(results, (std::vector<std::string>{"0", "10", "20"}));
+  EXPECT_THROW(mpi::RunSharedWorkList({1},
+                                      [](const std::vector<size_t>&) -> std::vector<std::string> {
+                                        throw InputError("f.pcd", "", "corrupt");
+                                      }),
+               InputError);
+}
+
+TEST(ByteEncoding, VarintsRoundTripAndUseFewBytesForSmallValues) {
+  const std::vector<uint64_t> values = {
+      0, 1, 127, 128, 300, 16383, 16384, (uint64_t{1} << 32) + 5, ~uint64_t{0}};
+  ByteWriter writer;
+  for (uint64_t v : values) writer.PutVarint(v);
+  const std::string bytes = writer.Take();
+  // 1 + 1 + 1 + 2 + 2 + 2 + 3 + 5 + 10 bytes (7 bits each).
+  EXPECT_EQ(bytes.size(), 27u);
+  ByteReader reader(bytes);
+  for (uint64_t v : values) EXPECT_EQ(reader.GetVarint(), v);
+  EXPECT_TRUE(reader.AtEnd());
+  // A value cut off after a continuation byte is a broken invariant.
+  const std::string cut = "\x80";
+  ByteReader cut_reader(cut);
+  EXPECT_THROW(cut_reader.GetVarint(), InternalError);
+}
+
+// Runs `command`, returns its exit code and its standard output in *out.
+int RunShell(const std::string& command, std::string* out) {
+  out->clear();
+  FILE* pipe = popen((command + " 2>&1").c_str(), "r");
+  if (pipe == nullptr) return -1;
+  std::array<char, 4096> buffer;
+  size_t n;
+  while ((n = fread(buffer.data(), 1, buffer.size(), pipe)) > 0) out->append(buffer.data(), n);
+  const int status = pclose(pipe);
+  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+}
+
+// The probe's lines "rank R: <what>" starting with `what_prefix`, by rank.
+std::map<int, std::string> RankLines(const std::string& out, const std::string& what_prefix) {
+  std::map<int, std::string> lines;
+  std::istringstream in(out);
+  std::string line;
+  while (std::getline(in, line)) {
+    int rank = -1;
+    char rest[4096];
+    if (std::sscanf(line.c_str(), "rank %d: %4095[^\n]", &rank, rest) != 2) continue;
+    if (std::string(rest).rfind(what_prefix, 0) == 0) lines[rank] = rest;
+  }
+  return lines;
+}
+
+class MpiCollectivesTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    setenv("OMPI_ALLOW_RUN_AS_ROOT", "1", 1);
+    setenv("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1", 1);
+    std::string out;
+    if (RunShell("mpirun --version", &out) != 0) {
+      GTEST_SKIP() << "mpirun not found (apt install openmpi-bin)";
+    }
+  }
+  static std::string Mpirun(int ranks) {
+    return "mpirun --oversubscribe --bind-to none -np " + std::to_string(ranks) + " " +
+           LISFM_MPI_PROBE;
+  }
+};
+
+// Every rank gets every result of the shared list, in list order; a work
+// list after it gathers on rank 0 only.
+TEST_F(MpiCollectivesTest, SharedWorkListGivesEveryRankEveryResult) {
+  for (int ranks : {2, 3}) {
+    std::string out;
+    ASSERT_EQ(RunShell(Mpirun(ranks) + " shared", &out), 0) << out;
+    const auto shared = RankLines(out, "shared ");
+    ASSERT_EQ(shared.size(), static_cast<size_t>(ranks)) << out;
+    for (const auto& [rank, line] : shared) {
+      EXPECT_EQ(line, "shared 0,1,4,9,16,25,36,49,64,81") << ranks << " ranks, rank " << rank;
+    }
+    const auto gathered = RankLines(out, "gathered ");
+    ASSERT_EQ(gathered.size(), 1u) << out;
+    EXPECT_EQ(gathered.begin()->first, 0);
+    EXPECT_EQ(gathered.begin()->second, "gathered 0,2,8,18,32,50,72,98,128,162");
+    EXPECT_EQ(RankLines(out, "released").size(), static_cast<size_t>(ranks - 1)) << out;
+  }
+}
+
+// A failing item: every rank throws the same error, naming the rank that
+// failed, and the run exits non-zero.
+TEST_F(MpiCollectivesTest, SharedWorkListFailureReachesEveryRank) {
+  for (int ranks : {2, 3}) {
+    std::string out;
+    EXPECT_NE(RunShell(Mpirun(ranks) + " fail", &out), 0) << out;
+    const auto errors = RankLines(out, "error ");
+    ASSERT_EQ(errors.size(), static_cast<size_t>(ranks)) << out;
+    // Item 7 of costs {5, 1, 1, 1, 1, 1, 1, 1, 3, 1} lies on the last rank.
+    const std::string expected =
+        "(MPI rank " + std::to_string(ranks - 1) + " of " + std::to_string(ranks) + ")";
+    for (const auto& [rank, line] : errors) {
+      EXPECT_NE(line.find("bad.pcd"), std::string::npos) << line;
+      EXPECT_NE(line.find(expected), std::string::npos) << line;
+    }
+    EXPECT_TRUE(RankLines(out, "shared ").empty()) << out;
+  }
 }
 
 TEST(ByteEncoding, RoundTripsPosesAndMatricesBitForBit) {

@@ -5,11 +5,17 @@
 #include <ceres/loss_function.h>
 #include <ceres/solver.h>
 #include <fmt/format.h>
+#ifdef LISFM_HAVE_SUITESPARSE_CONFIG
+#include <SuiteSparse_config.h>
+#include <malloc.h>
+#endif
 
 #include <Eigen/Cholesky>
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdlib>
+#include <cstring>
 #include <thread>
 #include <utility>
 
@@ -59,6 +65,56 @@ int NumThreads(int requested) {
   return requested > 0 ? requested
                        : std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
 }
+
+// While alive, SuiteSparse (CHOLMOD, SuiteSparseQR) allocates on 64-byte
+// boundaries. SuiteSparseQR factors its dense fronts with the system BLAS
+// (ATLAS on Debian), whose kernels order their sums by the arrays' address
+// alignment; malloc only guarantees 16 bytes, so the last digits of the
+// covariances followed the heap's state (mpirun's allocations, the allocator's
+// caches). Memory from either allocator is released with free(), so blocks
+// may cross the switch. Not thread-safe: SuiteSparse's functions are global.
+class AlignedSuiteSparseAllocation {
+ public:
+#ifdef LISFM_HAVE_SUITESPARSE_CONFIG
+  AlignedSuiteSparseAllocation() : saved_(SuiteSparse_config) {
+    SuiteSparse_config.malloc_func = &Malloc;
+    SuiteSparse_config.calloc_func = &Calloc;
+    SuiteSparse_config.realloc_func = &Realloc;
+    SuiteSparse_config.free_func = &std::free;
+  }
+  ~AlignedSuiteSparseAllocation() {
+    SuiteSparse_config.malloc_func = saved_.malloc_func;
+    SuiteSparse_config.calloc_func = saved_.calloc_func;
+    SuiteSparse_config.realloc_func = saved_.realloc_func;
+    SuiteSparse_config.free_func = saved_.free_func;
+  }
+
+ private:
+  static constexpr size_t kAlignment = 64;  // a cache line; >= any SIMD width
+  static void* Malloc(size_t size) {
+    void* p = nullptr;
+    return posix_memalign(&p, kAlignment, std::max<size_t>(size, 1)) == 0 ? p : nullptr;
+  }
+  static void* Calloc(size_t count, size_t size) {
+    if (size != 0 && count > SIZE_MAX / size) return nullptr;
+    void* p = Malloc(count * size);
+    if (p != nullptr) std::memset(p, 0, count * size);
+    return p;
+  }
+  // A new aligned block with the old contents (malloc_usable_size: the old
+  // block may come from either allocator).
+  static void* Realloc(void* old, size_t size) {
+    void* p = Malloc(size);
+    if (p == nullptr) return nullptr;
+    if (old != nullptr) {
+      std::memcpy(p, old, std::min(malloc_usable_size(old), size));
+      std::free(old);
+    }
+    return p;
+  }
+  SuiteSparse_config_struct saved_;
+#endif
+};
 
 }  // namespace
 
@@ -264,6 +320,7 @@ std::vector<MatX> PoseGraph::PoseCovariances(const std::vector<int>& indices) {
   ceres::Covariance::Options covariance_options;
   covariance_options.algorithm_type = ceres::SPARSE_QR;
   covariance_options.num_threads = NumThreads(-1);
+  const AlignedSuiteSparseAllocation aligned;
   ceres::Covariance covariance(covariance_options);
   std::vector<std::pair<const double*, const double*>> blocks;
   for (const int index : indices) {

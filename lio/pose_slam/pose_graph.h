@@ -133,7 +133,9 @@ class PoseGraph {
   // losses as at the estimate): 3D 6x6 on the right perturbation xi = [omega; v]
   // (rad, m); 2D 3x3 over (x, y, theta). A constant pose has a zero covariance.
   // Throws InternalError when the Hessian is rank deficient (a pose not joined
-  // to the gauge).
+  // to the gauge). The same bits whatever the heap's state: SuiteSparse
+  // allocates aligned during the call (its allocation functions are global:
+  // no other thread may use SuiteSparse meanwhile).
   std::vector<MatX> PoseCovariances(const std::vector<int>& indices);
 
  private:
