@@ -1420,8 +1420,7 @@ void AddTriangulationOptions(OptionManager* options,
   options->AddStructCheck([triangulation] { return triangulation->Check(); });
 }
 
-void AddTrackCompletionOptions(OptionManager* options,
-                               colmap::TrackCompletionOptions* completion) {
+void AddTrackCompletionOptions(OptionManager* options, colmap::TrackCompletionOptions* completion) {
   options->AddBool("TrackCompletion.complete",
                    &completion->complete,
                    "after each refinement round, add to every point the observations its "

@@ -230,8 +230,7 @@ std::vector<ViewGraphEdge> DatabaseMatches(const Database& database,
                                            const GlobalMapperOptions& options,
                                            const MapperState& state) {
   std::vector<ViewGraphEdge> matches;
-  if (!options.track_completion_database_matches ||
-      (options.num_refinement_rounds == 0) ||
+  if (!options.track_completion_database_matches || options.num_refinement_rounds == 0 ||
       (!options.track_completion.complete && !options.track_completion.merge)) {
     return matches;
   }
@@ -420,7 +419,9 @@ BundleAdjustmentOptions RoundBundleAdjustmentOptions(const GlobalMapperOptions& 
 // One refinement round of component `c`: bundle adjustment, then (points
 // left out of a subsampled adjustment re-triangulated) filtering and, except
 // in the final round, retriangulation.
-MapperRoundSummary RefinementRound(const GlobalMapperOptions& options, size_t c, int round,
+MapperRoundSummary RefinementRound(const GlobalMapperOptions& options,
+                                   size_t c,
+                                   int round,
                                    const std::vector<ViewGraphEdge>& database_matches,
                                    MapperState* state) {
   MapperRoundSummary r;
@@ -444,14 +445,13 @@ MapperRoundSummary RefinementRound(const GlobalMapperOptions& options, size_t c,
   if (!r.final_round && !r.retriangulation_skipped) {
     r.retriangulated_observations = RetriangulateTracks(options.triangulation, state);
   }
-  r.track_completion_run = !r.final_round && (options.track_completion.complete ||
-                                              options.track_completion.merge);
+  r.track_completion_run =
+      !r.final_round && (options.track_completion.complete || options.track_completion.merge);
   if (r.track_completion_run) {
     std::vector<ViewGraphEdge> correspondences = state->view_graph.edges;
-    correspondences.insert(correspondences.end(), database_matches.begin(),
-                           database_matches.end());
-    r.track_completion = CompleteAndMergeTracks(options.track_completion, options.triangulation,
-                                                correspondences, state);
+    correspondences.insert(correspondences.end(), database_matches.begin(), database_matches.end());
+    r.track_completion = CompleteAndMergeTracks(
+        options.track_completion, options.triangulation, correspondences, state);
   }
   r.filter_retriangulate_seconds = SecondsSince(t0);
   r.model = ModelCounts(*state);
@@ -508,10 +508,13 @@ void LogStageTimes(size_t c, const MapperComponentSummary& comp) {
 // tracks, refinement rounds, weak frames dropped. Appends its summary to
 // `summary->components`; returns false when it lost its frames in averaging
 // (no model). `*model` is the component's model otherwise.
-bool ReconstructComponent(const MapperState& base, const std::string& image_path,
+bool ReconstructComponent(const MapperState& base,
+                          const std::string& image_path,
                           const std::vector<ViewGraphEdge>& database_matches,
-                          const GlobalMapperOptions& options, size_t c,
-                          const std::vector<frame_t>& frame_ids, GlobalMapperSummary* summary,
+                          const GlobalMapperOptions& options,
+                          size_t c,
+                          const std::vector<frame_t>& frame_ids,
+                          GlobalMapperSummary* summary,
                           Reconstruction* model) {
   MapperComponentSummary& comp = summary->components.emplace_back();
   comp.frames = frame_ids.size();
@@ -594,7 +597,8 @@ GlobalMapperResult RunGlobalMapper(const Database& database,
       break;
     }
     Reconstruction model;
-    if (ReconstructComponent(base, image_path, database_matches, options, c, components[c], &summary, &model) &&
+    if (ReconstructComponent(
+            base, image_path, database_matches, options, c, components[c], &summary, &model) &&
         model.NumImages() >= static_cast<size_t>(std::max(2, options.min_component_frames))) {
       result.models.push_back(std::move(model));
     }

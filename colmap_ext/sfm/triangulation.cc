@@ -1,5 +1,9 @@
 #include "colmap_ext/sfm/triangulation.h"
 
+#include <Eigen/Dense>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -7,11 +11,6 @@
 #include <set>
 #include <unordered_map>
 #include <vector>
-
-#include <Eigen/Dense>
-#include <tbb/blocked_range.h>
-#include <tbb/parallel_for.h>
-#include <tbb/task_arena.h>
 
 #include "colmap_ext/sfm/camera_model_functors.h"
 #include "core/errors.h"
@@ -707,8 +706,9 @@ class CorrespondenceGraph {
 };
 
 bool HasImage(const std::vector<TrackElement>& elements, image_t image_id) {
-  return std::any_of(elements.begin(), elements.end(),
-                     [&](const TrackElement& e) { return e.image_id == image_id; });
+  return std::any_of(elements.begin(), elements.end(), [&](const TrackElement& e) {
+    return e.image_id == image_id;
+  });
 }
 
 bool Contains(const std::vector<TrackElement>& elements, const TrackElement& e) {
@@ -729,8 +729,12 @@ bool Remove(const TrackElement& e, std::vector<TrackElement>* elements) {
 
 // Completion of track `t` (see CompleteAndMergeTracks); returns the number of
 // observations added and counts those taken from other tracks in `*taken`.
-size_t CompleteTrack(const TrackCompletionOptions& options, const CorrespondenceGraph& graph,
-                     const GeometryMap& geometry, int t, MapperState* state, size_t* taken) {
+size_t CompleteTrack(const TrackCompletionOptions& options,
+                     const CorrespondenceGraph& graph,
+                     const GeometryMap& geometry,
+                     int t,
+                     MapperState* state,
+                     size_t* taken) {
   Track& track = state->tracks[t];
   std::vector<std::pair<size_t, int>> queue;  // (node, links from the original track)
   for (const TrackElement& e : track.elements) {
@@ -773,8 +777,12 @@ size_t CompleteTrack(const TrackCompletionOptions& options, const Correspondence
 
 // Re-triangulates the union of tracks t1 and t2 (no image in common) and
 // merges t2 into t1 when every observation passes; true when merged.
-bool MergeTracks(const TrackCompletionOptions& options, const TriangulationOptions& triangulation,
-                 const GeometryMap& geometry, int t1, int t2, MapperState* state) {
+bool MergeTracks(const TrackCompletionOptions& options,
+                 const TriangulationOptions& triangulation,
+                 const GeometryMap& geometry,
+                 int t1,
+                 int t2,
+                 MapperState* state) {
   Track& a = state->tracks[t1];
   Track& b = state->tracks[t2];
   std::vector<TrackElement> merged = a.elements;
@@ -889,12 +897,18 @@ TrackCompletionStats CompleteAndMergeTracks(const TrackCompletionOptions& option
     }
   }
   stats.seconds = SecondsSince(start);
-  LogInfo("track completion: {} observations added to {} tracks ({} taken from other tracks); "
-          "merging: {} of {} candidate track pairs merged ({} observations); {} correspondences; "
-          "{:.3f} s",
-          stats.num_observations_completed, stats.num_tracks_completed,
-          stats.num_observations_taken, stats.num_merges, stats.num_merge_candidates,
-          stats.num_observations_merged, stats.num_correspondences, stats.seconds);
+  LogInfo(
+      "track completion: {} observations added to {} tracks ({} taken from other tracks); "
+      "merging: {} of {} candidate track pairs merged ({} observations); {} correspondences; "
+      "{:.3f} s",
+      stats.num_observations_completed,
+      stats.num_tracks_completed,
+      stats.num_observations_taken,
+      stats.num_merges,
+      stats.num_merge_candidates,
+      stats.num_observations_merged,
+      stats.num_correspondences,
+      stats.seconds);
   return stats;
 }
 

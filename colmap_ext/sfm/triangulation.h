@@ -159,8 +159,8 @@ struct TrackCompletionOptions {
 };
 
 struct TrackCompletionStats {
-  size_t num_correspondences = 0;     // distinct links between registered keypoints
-  size_t num_tracks_completed = 0;    // tracks that gained observations
+  size_t num_correspondences = 0;   // distinct links between registered keypoints
+  size_t num_tracks_completed = 0;  // tracks that gained observations
   size_t num_observations_completed = 0;
   size_t num_observations_taken = 0;  // of those, taken from another track
   size_t num_merge_candidates = 0;    // linked track pairs with no common image

@@ -1,11 +1,11 @@
 #include "colmap_ext/sfm/triangulation.h"
 
+#include <gtest/gtest.h>
+
 #include <algorithm>
 #include <cmath>
 #include <random>
 #include <vector>
-
-#include <gtest/gtest.h>
 
 #include "core/errors.h"
 #include "tests/common/test_utils.h"
@@ -482,7 +482,8 @@ TEST(CompleteAndMergeTracks, RecoversDroppedObservationsAndSplitTracksWithoutOut
     for (int half = 0; half < 2; ++half) {
       const int num_clean = static_cast<int>(
           std::count(corrupt.begin() + 4 * half, corrupt.begin() + 4 * half + 4, false));
-      if (num_clean < 2) std::fill(corrupt.begin() + 4 * half, corrupt.begin() + 4 * half + 4, false);
+      if (num_clean < 2)
+        std::fill(corrupt.begin() + 4 * half, corrupt.begin() + 4 * half + 4, false);
     }
     for (int i = 0; i < kImages; ++i) {
       const image_t image_id = i + 1;
