@@ -1,9 +1,5 @@
 #include "colmap_ext/sfm/triangulation.h"
 
-#include <Eigen/Dense>
-#include <tbb/blocked_range.h>
-#include <tbb/parallel_for.h>
-#include <tbb/task_arena.h>
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -11,6 +7,11 @@
 #include <set>
 #include <unordered_map>
 #include <vector>
+
+#include <Eigen/Dense>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
 
 #include "colmap_ext/sfm/camera_model_functors.h"
 #include "core/errors.h"
