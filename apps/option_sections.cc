@@ -1174,6 +1174,11 @@ void AddGlobalMapperOptions(OptionManager* options,
   AddTranslationAveragingOptions(options, &mapper->translation_averaging);
   AddTrackOptions(options, &mapper->tracks);
   AddTriangulationOptions(options, &mapper->triangulation);
+  AddTrackCompletionOptions(options, &mapper->track_completion);
+  options->AddBool("TrackCompletion.database_matches",
+                   &mapper->track_completion_database_matches,
+                   "completion and merging also follow the inlier matches of the database's "
+                   "two-view geometries (besides the view graph's edges)");
   AddBundleAdjustmentOptions(options, &mapper->bundle_adjustment);
   options->AddStructCheck([mapper] { return mapper->Check(); });
 }
@@ -1367,6 +1372,10 @@ void AddTranslationAveragingOptions(
                   &ta->max_num_iterations,
                   "Ceres iterations",
                   R::AtLeast(1));
+  options->AddInt("TranslationAveraging.ceres_num_threads",
+                  &ta->ceres_num_threads,
+                  "Ceres threads (1: the same result bit for bit from run to run)",
+                  R::AtLeast(1));
   options->AddDouble("TranslationAveraging.function_tolerance",
                      &ta->function_tolerance,
                      "Ceres relative cost change to stop",
@@ -1409,6 +1418,31 @@ void AddTriangulationOptions(OptionManager* options,
                   "pair hypotheses of the robust triangulation",
                   R::AtLeast(1));
   options->AddStructCheck([triangulation] { return triangulation->Check(); });
+}
+
+void AddTrackCompletionOptions(OptionManager* options, colmap::TrackCompletionOptions* completion) {
+  options->AddBool("TrackCompletion.complete",
+                   &completion->complete,
+                   "after each refinement round, add to every point the observations its "
+                   "matches link to that reproject within complete_max_reprojection_error_px");
+  options->AddDouble("TrackCompletion.complete_max_reprojection_error_px",
+                     &completion->complete_max_reprojection_error_px,
+                     "px, largest reprojection error of an observation added by completion",
+                     R::GreaterThan(0));
+  options->AddInt("TrackCompletion.complete_max_transitivity",
+                  &completion->complete_max_transitivity,
+                  "match links followed from a point's observations by completion",
+                  R::AtLeast(1));
+  options->AddBool("TrackCompletion.merge",
+                   &completion->merge,
+                   "after each refinement round, merge two points linked by a match when the "
+                   "re-triangulated point reprojects within merge_max_reprojection_error_px in "
+                   "all their observations");
+  options->AddDouble("TrackCompletion.merge_max_reprojection_error_px",
+                     &completion->merge_max_reprojection_error_px,
+                     "px, largest reprojection error of any observation of a merged point",
+                     R::GreaterThan(0));
+  options->AddStructCheck([completion] { return completion->Check(); });
 }
 
 void AddBundleAdjustmentOptions(
@@ -1482,6 +1516,10 @@ void AddBundleAdjustmentOptions(
                   &ba->max_num_iterations,
                   "Levenberg-Marquardt iterations",
                   R::AtLeast(0));
+  options->AddInt("BundleAdjustment.ceres_num_threads",
+                  &ba->ceres_num_threads,
+                  "Ceres threads (solver ceres; 1: the same result bit for bit from run to run)",
+                  R::AtLeast(1));
   options->AddInt("BundleAdjustment.dense_schur_max_frames",
                   &ba->dense_schur_max_frames,
                   "up to this many frames: the dense-Schur solvers",

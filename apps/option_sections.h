@@ -122,6 +122,7 @@ void AddTranslationAveragingOptions(
 void AddTrackOptions(OptionManager* options, colmap::TrackOptions* tracks);
 void AddTriangulationOptions(OptionManager* options,
                              colmap::TriangulationOptions* triangulation);
+void AddTrackCompletionOptions(OptionManager* options, colmap::TrackCompletionOptions* completion);
 void AddBundleAdjustmentOptions(
     OptionManager* options, colmap::BundleAdjustmentOptions* bundle_adjustment);
 

@@ -63,6 +63,17 @@ nlohmann::json RoundToJson(const MapperRoundSummary& r) {
   } else if (!r.final_round) {
     j["retriangulated_observations"] = r.retriangulated_observations;
   }
+  if (r.track_completion_run) {
+    const colmap::TrackCompletionStats& tc = r.track_completion;
+    j["track_completion"] = {{"correspondences", tc.num_correspondences},
+                             {"tracks_completed", tc.num_tracks_completed},
+                             {"observations_completed", tc.num_observations_completed},
+                             {"observations_taken", tc.num_observations_taken},
+                             {"merge_candidates", tc.num_merge_candidates},
+                             {"merges", tc.num_merges},
+                             {"observations_merged", tc.num_observations_merged},
+                             {"seconds", tc.seconds}};
+  }
   j["filter_retriangulate_seconds"] = r.filter_retriangulate_seconds;
   j["model"] = ModelCountsToJson(r.model);
   return j;

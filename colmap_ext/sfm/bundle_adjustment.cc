@@ -569,10 +569,10 @@ void SolveWithCeres(const BundleAdjustmentOptions& options,
   solver_options.function_tolerance = options.function_tolerance;
   solver_options.gradient_tolerance = options.gradient_tolerance;
   solver_options.parameter_tolerance = options.parameter_tolerance;
-  // One thread: Ceres 2.1's multi-threaded Schur elimination and cost sum
-  // add the contributions of the points in thread-timing order, so their last
-  // bits (and with them the model) would differ from run to run.
-  solver_options.num_threads = 1;
+  // One thread by default: Ceres 2.1's multi-threaded Schur elimination and
+  // cost sum add the contributions of the points in thread-timing order, so
+  // their last bits (and with them the model) would differ from run to run.
+  solver_options.num_threads = options.ceres_num_threads;
   solver_options.minimizer_progress_to_stdout = options.verbose;
   solver_options.logging_type = options.verbose ? ceres::PER_MINIMIZER_ITERATION : ceres::SILENT;
 
@@ -1105,6 +1105,7 @@ bool BundleAdjustmentOptions::Check() const {
   CHECK_OPTION_MSG(solver, solver == "auto" || solver == "ceres" || solver == "schur",
                    "one of auto, ceres, schur");
   CHECK_OPTION_MSG(num_threads, num_threads == -1 || num_threads >= 1, "-1 or >= 1");
+  CHECK_OPTION_GE(ceres_num_threads, 1);
   return true;
 }
 

@@ -59,8 +59,9 @@
 //   So priors give a metric result in the priors' world frame; LiDAR
 //   constraints alone give a metric result with the first frame fixed.
 // Threads: the Schur solver uses `num_threads` (deterministic reductions);
-// Ceres runs on one thread (its multi-threaded Schur elimination adds up in
-// thread-timing order), so the result is the same bit for bit from run to run.
+// Ceres runs on ceres_num_threads = 1 thread by default (its multi-threaded Schur
+// elimination adds up in thread-timing order), so the result is the same bit for
+// bit from run to run.
 // The state must not be shared meanwhile.
 // Failures: a non-positive-definite prior or LiDAR covariance is user data
 // (InputError naming the frame / constraint); a problem without observations
@@ -117,6 +118,9 @@ struct BundleAdjustmentOptions {
   // Ceres otherwise; ceres / schur force one (schur cannot refine cam_from_rig).
   std::string solver = "auto";
   int num_threads = -1;               // Schur solver threads; -1: hardware threads
+  // Ceres threads (solver ceres). 1 keeps the result the same bit for bit
+  // from run to run (header comment); more may differ in the last bits.
+  int ceres_num_threads = 1;
   bool verbose = false;               // Ceres progress to stdout
   bool Check() const;
 };

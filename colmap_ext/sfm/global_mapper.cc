@@ -222,6 +222,40 @@ void PositionsFromPriors(const std::vector<frame_t>& frame_ids, MapperState* sta
   }
 }
 
+// The inlier matches of the database's usable two-view geometries (configs
+// as BuildViewGraph) between images of `state`, as correspondence carriers
+// for CompleteAndMergeTracks; empty when completion and merging are off or
+// track_completion_database_matches is false.
+std::vector<ViewGraphEdge> DatabaseMatches(const Database& database,
+                                           const GlobalMapperOptions& options,
+                                           const MapperState& state) {
+  std::vector<ViewGraphEdge> matches;
+  if (!options.track_completion_database_matches || options.num_refinement_rounds == 0 ||
+      (!options.track_completion.complete && !options.track_completion.merge)) {
+    return matches;
+  }
+  for (auto& [pair_id, geometry] : database.ReadAllTwoViewGeometries()) {
+    const TwoViewConfig config = static_cast<TwoViewConfig>(geometry.config);
+    if (config == TwoViewConfig::kUndefined || config == TwoViewConfig::kDegenerate ||
+        config == TwoViewConfig::kWatermark || config == TwoViewConfig::kMultiple ||
+        geometry.inlier_matches.rows() == 0) {
+      continue;
+    }
+    image_t image_id1 = kInvalidImageId, image_id2 = kInvalidImageId;
+    PairIdToImagePair(pair_id, &image_id1, &image_id2);
+    if (!state.images.count(image_id1) || !state.images.count(image_id2)) continue;
+    ViewGraphEdge edge;
+    edge.image_id1 = image_id1;
+    edge.image_id2 = image_id2;
+    edge.inliers.reserve(geometry.inlier_matches.rows());
+    for (Eigen::Index k = 0; k < geometry.inlier_matches.rows(); ++k) {
+      edge.inliers.emplace_back(geometry.inlier_matches(k, 0), geometry.inlier_matches(k, 1));
+    }
+    matches.push_back(std::move(edge));
+  }
+  return matches;
+}
+
 // ---- Stages of RunGlobalMapper, in call order ----
 
 // Loads cameras, images, keypoints, priors and rig frames and attaches the
@@ -385,7 +419,10 @@ BundleAdjustmentOptions RoundBundleAdjustmentOptions(const GlobalMapperOptions& 
 // One refinement round of component `c`: bundle adjustment, then (points
 // left out of a subsampled adjustment re-triangulated) filtering and, except
 // in the final round, retriangulation.
-MapperRoundSummary RefinementRound(const GlobalMapperOptions& options, size_t c, int round,
+MapperRoundSummary RefinementRound(const GlobalMapperOptions& options,
+                                   size_t c,
+                                   int round,
+                                   const std::vector<ViewGraphEdge>& database_matches,
                                    MapperState* state) {
   MapperRoundSummary r;
   r.final_round = round == options.num_refinement_rounds;
@@ -407,6 +444,14 @@ MapperRoundSummary RefinementRound(const GlobalMapperOptions& options, size_t c,
   r.retriangulation_skipped = !r.final_round && options.skip_retriangulation;
   if (!r.final_round && !r.retriangulation_skipped) {
     r.retriangulated_observations = RetriangulateTracks(options.triangulation, state);
+  }
+  r.track_completion_run =
+      !r.final_round && (options.track_completion.complete || options.track_completion.merge);
+  if (r.track_completion_run) {
+    std::vector<ViewGraphEdge> correspondences = state->view_graph.edges;
+    correspondences.insert(correspondences.end(), database_matches.begin(), database_matches.end());
+    r.track_completion = CompleteAndMergeTracks(
+        options.track_completion, options.triangulation, correspondences, state);
   }
   r.filter_retriangulate_seconds = SecondsSince(t0);
   r.model = ModelCounts(*state);
@@ -463,9 +508,13 @@ void LogStageTimes(size_t c, const MapperComponentSummary& comp) {
 // tracks, refinement rounds, weak frames dropped. Appends its summary to
 // `summary->components`; returns false when it lost its frames in averaging
 // (no model). `*model` is the component's model otherwise.
-bool ReconstructComponent(const MapperState& base, const std::string& image_path,
-                          const GlobalMapperOptions& options, size_t c,
-                          const std::vector<frame_t>& frame_ids, GlobalMapperSummary* summary,
+bool ReconstructComponent(const MapperState& base,
+                          const std::string& image_path,
+                          const std::vector<ViewGraphEdge>& database_matches,
+                          const GlobalMapperOptions& options,
+                          size_t c,
+                          const std::vector<frame_t>& frame_ids,
+                          GlobalMapperSummary* summary,
                           Reconstruction* model) {
   MapperComponentSummary& comp = summary->components.emplace_back();
   comp.frames = frame_ids.size();
@@ -480,7 +529,7 @@ bool ReconstructComponent(const MapperState& base, const std::string& image_path
   }
   TrackStage(options, &state, &comp);
   for (int round = 0; round <= options.num_refinement_rounds; ++round) {
-    comp.refinement.push_back(RefinementRound(options, c, round, &state));
+    comp.refinement.push_back(RefinementRound(options, c, round, database_matches, &state));
   }
   LogRigFromPrior(c, state, comp);
   comp.dropped_weak_frames = DropWeakFrames(options.min_frame_observations, base.cameras, &state);
@@ -502,6 +551,7 @@ bool GlobalMapperOptions::Check() const {
   CHECK_OPTION_NESTED(translation_averaging);
   CHECK_OPTION_NESTED(tracks);
   CHECK_OPTION_NESTED(triangulation);
+  CHECK_OPTION_NESTED(track_completion);
   CHECK_OPTION_NESTED(bundle_adjustment);
   CHECK_OPTION_GE(num_refinement_rounds, 0);
   CHECK_OPTION_GE(refinement_function_tolerance, 0.0);
@@ -532,6 +582,7 @@ GlobalMapperResult RunGlobalMapper(const Database& database,
     return result;
   }
 
+  const std::vector<ViewGraphEdge> database_matches = DatabaseMatches(database, options, base);
   for (size_t c = 0; c < components.size(); ++c) {
     if (static_cast<int>(components[c].size()) < options.min_component_frames) continue;
     if (!options.reconstruct_all_components && !result.models.empty()) {
@@ -546,7 +597,8 @@ GlobalMapperResult RunGlobalMapper(const Database& database,
       break;
     }
     Reconstruction model;
-    if (ReconstructComponent(base, image_path, options, c, components[c], &summary, &model) &&
+    if (ReconstructComponent(
+            base, image_path, database_matches, options, c, components[c], &summary, &model) &&
         model.NumImages() >= static_cast<size_t>(std::max(2, options.min_component_frames))) {
       result.models.push_back(std::move(model));
     }

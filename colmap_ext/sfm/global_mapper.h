@@ -6,7 +6,8 @@
 //   → BuildViewGraph (robust relative poses from the database's inlier matches)
 //   → per connected component of frames:
 //       AverageRotations → AverageTranslations → BuildTracks → TriangulateTracks
-//       → rounds of { RunBundleAdjustment → FilterTracks → RetriangulateTracks }
+//       → rounds of { RunBundleAdjustment → FilterTracks → RetriangulateTracks
+//                     → CompleteAndMergeTracks }
 //       → final RunBundleAdjustment + FilterTracks
 //       → frames left with too few observations are dropped
 //   → one COLMAP Reconstruction per component (largest first).
@@ -56,6 +57,13 @@ struct GlobalMapperOptions {
   TranslationAveragingOptions translation_averaging;
   TrackOptions tracks;
   TriangulationOptions triangulation;
+  // Completion and merging of the tracks at the end of each refinement round
+  // (after its retriangulation, before the next adjustment).
+  TrackCompletionOptions track_completion;
+  // Completion and merging follow, besides the view graph's edges (valid or
+  // not), the inlier matches of the database's two-view geometries (those of
+  // pairs the view graph rejected or whose matches it re-estimated away).
+  bool track_completion_database_matches = true;
   BundleAdjustmentOptions bundle_adjustment;
   // Rounds of bundle adjustment → filter → retriangulate before the final BA.
   // One is enough: on the five real data sets of scripts/compare_colmap.sh a
@@ -119,6 +127,8 @@ struct MapperRoundSummary {
   bool final_round = false;          // no retriangulation in the final round
   bool retriangulation_skipped = false;
   size_t retriangulated_observations = 0;
+  bool track_completion_run = false;  // completion or merging ran in this round
+  TrackCompletionStats track_completion;
   double filter_retriangulate_seconds = 0.0;
   MapperModelCounts model;  // after the round
 };

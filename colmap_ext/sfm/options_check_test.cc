@@ -45,6 +45,14 @@ TEST(SfmOptionsCheck, TracksAndTriangulation) {
       {"max_hypothesis_pairs", [](R* o) { o->max_hypothesis_pairs = 0; }},
       {"num_threads", [](R* o) { o->num_threads = 0; }},
   });
+  using C = TrackCompletionOptions;
+  ExpectCheckRejects<C>({
+      {"complete_max_reprojection_error_px",
+       [](C* o) { o->complete_max_reprojection_error_px = 0.0; }},
+      {"complete_max_transitivity", [](C* o) { o->complete_max_transitivity = 0; }},
+      {"merge_max_reprojection_error_px",
+       [](C* o) { o->merge_max_reprojection_error_px = -1.0; }},
+  });
 }
 
 TEST(SfmOptionsCheck, BundleAdjustment) {
@@ -60,6 +68,7 @@ TEST(SfmOptionsCheck, BundleAdjustment) {
       {"dense_schur_max_frames", [](B* o) { o->dense_schur_max_frames = -1; }},
       {"solver", [](B* o) { o->solver = "dense"; }},
       {"num_threads", [](B* o) { o->num_threads = 0; }},
+      {"ceres_num_threads", [](B* o) { o->ceres_num_threads = 0; }},
   });
   using S = SchurBaOptions;
   ExpectCheckRejects<S>({
@@ -123,6 +132,7 @@ TEST(SfmOptionsCheck, TranslationAveraging) {
        [](T* o) { o->max_residual_angle_deg = kInf; }},
       {"max_num_iterations", [](T* o) { o->max_num_iterations = 0; }},
       {"function_tolerance", [](T* o) { o->function_tolerance = -1e-9; }},
+      {"ceres_num_threads", [](T* o) { o->ceres_num_threads = 0; }},
   });
 }
 

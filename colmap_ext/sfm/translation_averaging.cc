@@ -697,9 +697,9 @@ void SolvePositions(const TranslationAveragingOptions& options, int round,
           : ceres::DENSE_SCHUR;
   solver_options.max_num_iterations = options.max_num_iterations;
   solver_options.function_tolerance = options.function_tolerance;
-  // One thread: Ceres 2.1's multi-threaded Schur elimination and cost sum
-  // add up in thread-timing order (results not reproducible bit for bit).
-  solver_options.num_threads = 1;
+  // One thread by default: Ceres 2.1's multi-threaded Schur elimination and
+  // cost sum add up in thread-timing order (not reproducible bit for bit).
+  solver_options.num_threads = options.ceres_num_threads;
   solver_options.logging_type = options.verbose ? ceres::PER_MINIMIZER_ITERATION : ceres::SILENT;
   solver_options.minimizer_progress_to_stdout = options.verbose;
   ceres::Solver::Summary summary;
@@ -775,6 +775,7 @@ void NormaliseScale(const std::vector<DirectionEdge>& edges,
 
 bool TranslationAveragingOptions::Check() const {
   CHECK_OPTION_GE(num_projections, 1);
+  CHECK_OPTION_GE(ceres_num_threads, 1);
   CHECK_OPTION_MSG(min_projection_magnitude,
                    min_projection_magnitude >= 0.0 && min_projection_magnitude < 1.0, "in [0, 1)");
   CHECK_OPTION_MSG(max_broken_ratio, max_broken_ratio >= 0.0 && max_broken_ratio <= 1.0,

@@ -150,6 +150,8 @@ struct TranslationAveragingOptions {
   int max_num_iterations = 300;       // Ceres iterations
   double function_tolerance = 1e-10;  // Ceres relative cost change to stop
   int num_threads = -1;               // 1dSfM (TBB) threads; <= 0: all cores
+  // Ceres threads; 1 keeps the result the same bit for bit from run to run.
+  int ceres_num_threads = 1;
   uint64_t random_seed = 1;           // seeds the 1dSfM axes and the random init
   bool verbose = false;               // Ceres progress to stdout (CLI only)
 

@@ -4,6 +4,7 @@
 #include <chrono>
 #include <cmath>
 #include <limits>
+#include <set>
 #include <unordered_map>
 #include <vector>
 
@@ -633,6 +634,283 @@ size_t RetriangulateTracks(const TriangulationOptions& options, MapperState* sta
   LogInfo("retriangulation: {} observations added to {} tracks; {:.3f} s", added, num_tracks,
           SecondsSince(start));
   return added;
+}
+
+namespace {
+
+// The correspondence graph over the keypoints of registered images: dense
+// node ids in (image_id, point2D_idx) order, adjacency in CSR form (sorted,
+// without duplicates).
+class CorrespondenceGraph {
+ public:
+  CorrespondenceGraph(const std::vector<ViewGraphEdge>& correspondences, const MapperState& state) {
+    size_t num_nodes = 0;
+    for (const auto& [image_id, image] : state.images) {
+      if (!state.IsRegistered(image_id)) continue;
+      offset_[image_id] = num_nodes;
+      num_nodes += image.keypoints.size();
+    }
+    node_image_.resize(num_nodes);
+    for (const auto& [image_id, offset] : offset_) {
+      const size_t n = state.images.at(image_id).keypoints.size();
+      std::fill(node_image_.begin() + offset, node_image_.begin() + offset + n, image_id);
+    }
+    std::vector<std::pair<size_t, size_t>> links;
+    for (const ViewGraphEdge& edge : correspondences) {
+      const auto it1 = offset_.find(edge.image_id1);
+      const auto it2 = offset_.find(edge.image_id2);
+      if (it1 == offset_.end() || it2 == offset_.end() || edge.image_id1 == edge.image_id2) {
+        continue;
+      }
+      const size_t n1 = state.images.at(edge.image_id1).keypoints.size();
+      const size_t n2 = state.images.at(edge.image_id2).keypoints.size();
+      for (const auto& [idx1, idx2] : edge.inliers) {
+        if (idx1 >= n1 || idx2 >= n2) continue;
+        links.emplace_back(it1->second + idx1, it2->second + idx2);
+        links.emplace_back(it2->second + idx2, it1->second + idx1);
+      }
+    }
+    std::sort(links.begin(), links.end());
+    links.erase(std::unique(links.begin(), links.end()), links.end());
+    num_links_ = links.size() / 2;
+    begin_.assign(num_nodes + 1, 0);
+    for (const auto& link : links) ++begin_[link.first + 1];
+    for (size_t k = 0; k < num_nodes; ++k) begin_[k + 1] += begin_[k];
+    neighbours_.reserve(links.size());
+    for (const auto& link : links) neighbours_.push_back(link.second);
+  }
+
+  size_t NumLinks() const { return num_links_; }
+  // kNone for an image that is not registered or an index out of range.
+  size_t Node(const TrackElement& e, const MapperState& state) const {
+    const auto it = offset_.find(e.image_id);
+    if (it == offset_.end() || e.point2D_idx >= state.images.at(e.image_id).keypoints.size()) {
+      return kNone;
+    }
+    return it->second + e.point2D_idx;
+  }
+  TrackElement Element(size_t node) const {
+    const image_t image_id = node_image_[node];
+    return TrackElement{image_id, static_cast<point2D_t>(node - offset_.at(image_id))};
+  }
+  const size_t* begin(size_t node) const { return neighbours_.data() + begin_[node]; }
+  const size_t* end(size_t node) const { return neighbours_.data() + begin_[node + 1]; }
+
+  static constexpr size_t kNone = std::numeric_limits<size_t>::max();
+
+ private:
+  std::unordered_map<image_t, size_t> offset_;
+  std::vector<image_t> node_image_;
+  std::vector<size_t> begin_;
+  std::vector<size_t> neighbours_;
+  size_t num_links_ = 0;
+};
+
+bool HasImage(const std::vector<TrackElement>& elements, image_t image_id) {
+  return std::any_of(elements.begin(), elements.end(), [&](const TrackElement& e) {
+    return e.image_id == image_id;
+  });
+}
+
+bool Contains(const std::vector<TrackElement>& elements, const TrackElement& e) {
+  return std::any_of(elements.begin(), elements.end(), [&](const TrackElement& k) {
+    return k.image_id == e.image_id && k.point2D_idx == e.point2D_idx;
+  });
+}
+
+// Removes `e` from `elements`; true when it was there.
+bool Remove(const TrackElement& e, std::vector<TrackElement>* elements) {
+  const auto it = std::find_if(elements->begin(), elements->end(), [&](const TrackElement& k) {
+    return k.image_id == e.image_id && k.point2D_idx == e.point2D_idx;
+  });
+  if (it == elements->end()) return false;
+  elements->erase(it);
+  return true;
+}
+
+// Completion of track `t` (see CompleteAndMergeTracks); returns the number of
+// observations added and counts those taken from other tracks in `*taken`.
+size_t CompleteTrack(const TrackCompletionOptions& options,
+                     const CorrespondenceGraph& graph,
+                     const GeometryMap& geometry,
+                     int t,
+                     MapperState* state,
+                     size_t* taken) {
+  Track& track = state->tracks[t];
+  std::vector<std::pair<size_t, int>> queue;  // (node, links from the original track)
+  for (const TrackElement& e : track.elements) {
+    const size_t node = graph.Node(e, *state);
+    if (node != CorrespondenceGraph::kNone) queue.emplace_back(node, 0);
+  }
+  size_t added = 0;
+  for (size_t q = 0; q < queue.size(); ++q) {
+    const auto [node, depth] = queue[q];
+    if (depth >= options.complete_max_transitivity) continue;
+    for (const size_t* nb = graph.begin(node); nb != graph.end(node); ++nb) {
+      const TrackElement e = graph.Element(*nb);
+      if (HasImage(track.elements, e.image_id)) continue;
+      std::vector<int>& track_ids = state->images.at(e.image_id).track_ids;
+      const int owner = track_ids[e.point2D_idx];
+      if (owner == t) continue;  // among the track's own rejected observations
+      if (owner >= 0 && state->tracks[owner].triangulated &&
+          Contains(state->tracks[owner].elements, e)) {
+        continue;
+      }
+      const Observation obs = MakeObservation(geometry.at(e.image_id), e);
+      if (!Passes(Evaluate(obs, track.xyz), options.complete_max_reprojection_error_px)) continue;
+      if (owner >= 0) {
+        Track& other = state->tracks[owner];
+        if (!Remove(e, &other.elements)) Remove(e, &other.rejected);
+        ++*taken;
+      }
+      track_ids[e.point2D_idx] = t;
+      track.elements.push_back(e);
+      queue.emplace_back(*nb, depth + 1);
+      ++added;
+    }
+  }
+  if (added > 0) {
+    SortByImage(&track.elements);
+    UpdateError(geometry, &track);
+  }
+  return added;
+}
+
+// Re-triangulates the union of tracks t1 and t2 (no image in common) and
+// merges t2 into t1 when every observation passes; true when merged.
+bool MergeTracks(const TrackCompletionOptions& options,
+                 const TriangulationOptions& triangulation,
+                 const GeometryMap& geometry,
+                 int t1,
+                 int t2,
+                 MapperState* state) {
+  Track& a = state->tracks[t1];
+  Track& b = state->tracks[t2];
+  std::vector<TrackElement> merged = a.elements;
+  merged.insert(merged.end(), b.elements.begin(), b.elements.end());
+  SortByImage(&merged);
+  std::vector<Observation> obs;
+  obs.reserve(merged.size());
+  for (const TrackElement& e : merged) obs.push_back(MakeObservation(geometry.at(e.image_id), e));
+  std::vector<const Observation*> ptrs;
+  for (const Observation& o : obs) ptrs.push_back(&o);
+  // Start from the observation-weighted mean of the two points (COLMAP's merge
+  // hypothesis) and refine on the pixel error of all observations.
+  const double wa = static_cast<double>(a.elements.size());
+  const double wb = static_cast<double>(b.elements.size());
+  Vec3 xyz = (wa * a.xyz + wb * b.xyz) / (wa + wb);
+  RefinePoint(ptrs, triangulation.num_refinement_iterations, &xyz);
+  double error_sum = 0.0;
+  for (const Observation& o : obs) {
+    const Residual r = Evaluate(o, xyz);
+    if (!Passes(r, options.merge_max_reprojection_error_px)) return false;
+    error_sum += r.error;
+  }
+  if (MaxTriangulationAngle(ptrs, xyz) < triangulation.min_triangulation_angle_deg * kPi / 180.0) {
+    return false;
+  }
+  for (const std::vector<TrackElement>* list : {&b.elements, &b.rejected}) {
+    for (const TrackElement& e : *list) {
+      state->images.at(e.image_id).track_ids[e.point2D_idx] = t1;
+    }
+  }
+  a.rejected.insert(a.rejected.end(), b.rejected.begin(), b.rejected.end());
+  SortByImage(&a.rejected);
+  a.elements = std::move(merged);
+  a.xyz = xyz;
+  a.error = error_sum / static_cast<double>(a.elements.size());
+  b.elements.clear();
+  b.rejected.clear();
+  b.triangulated = false;
+  b.error = -1.0;
+  return true;
+}
+
+}  // namespace
+
+bool TrackCompletionOptions::Check() const {
+  CHECK_OPTION_GT(complete_max_reprojection_error_px, 0.0);
+  CHECK_OPTION_GE(complete_max_transitivity, 1);
+  CHECK_OPTION_GT(merge_max_reprojection_error_px, 0.0);
+  return true;
+}
+
+TrackCompletionStats CompleteAndMergeTracks(const TrackCompletionOptions& options,
+                                            const TriangulationOptions& triangulation,
+                                            const std::vector<ViewGraphEdge>& correspondences,
+                                            MapperState* state) {
+  THROW_CHECK(state != nullptr);
+  THROW_CHECK_OPTIONS(options);
+  THROW_CHECK_OPTIONS(triangulation);
+  const auto start = std::chrono::steady_clock::now();
+  TrackCompletionStats stats;
+  if (!options.complete && !options.merge) return stats;
+  const GeometryMap geometry = RegisteredGeometry(*state);
+  const CorrespondenceGraph graph(correspondences, *state);
+  stats.num_correspondences = graph.NumLinks();
+  const int num_tracks = static_cast<int>(state->tracks.size());
+
+  if (options.complete) {
+    for (int t = 0; t < num_tracks; ++t) {
+      if (!state->tracks[t].triangulated) continue;
+      const size_t added =
+          CompleteTrack(options, graph, geometry, t, state, &stats.num_observations_taken);
+      stats.num_observations_completed += added;
+      stats.num_tracks_completed += added > 0 ? 1 : 0;
+    }
+  }
+  if (options.merge) {
+    for (int t1 = 0; t1 < num_tracks; ++t1) {
+      // Rescan t1 after every merge (its observations changed); each merge
+      // empties a track, so this ends.
+      bool rescan = true;
+      while (rescan && state->tracks[t1].triangulated) {
+        rescan = false;
+        const std::vector<TrackElement> elements = state->tracks[t1].elements;
+        std::set<int> tried;
+        for (size_t i = 0; i < elements.size() && !rescan; ++i) {
+          const size_t node = graph.Node(elements[i], *state);
+          if (node == CorrespondenceGraph::kNone) continue;
+          for (const size_t* nb = graph.begin(node); nb != graph.end(node); ++nb) {
+            const TrackElement e = graph.Element(*nb);
+            const int t2 = state->images.at(e.image_id).track_ids[e.point2D_idx];
+            if (t2 < 0 || t2 == t1 || !state->tracks[t2].triangulated ||
+                !Contains(state->tracks[t2].elements, e) || !tried.insert(t2).second) {
+              continue;
+            }
+            const Track& b = state->tracks[t2];
+            if (std::any_of(b.elements.begin(), b.elements.end(), [&](const TrackElement& k) {
+                  return HasImage(elements, k.image_id);
+                })) {
+              continue;
+            }
+            ++stats.num_merge_candidates;
+            const size_t merged_size = b.elements.size();
+            if (MergeTracks(options, triangulation, geometry, t1, t2, state)) {
+              ++stats.num_merges;
+              stats.num_observations_merged += merged_size;
+              rescan = true;
+              break;
+            }
+          }
+        }
+      }
+    }
+  }
+  stats.seconds = SecondsSince(start);
+  LogInfo(
+      "track completion: {} observations added to {} tracks ({} taken from other tracks); "
+      "merging: {} of {} candidate track pairs merged ({} observations); {} correspondences; "
+      "{:.3f} s",
+      stats.num_observations_completed,
+      stats.num_tracks_completed,
+      stats.num_observations_taken,
+      stats.num_merges,
+      stats.num_merge_candidates,
+      stats.num_observations_merged,
+      stats.num_correspondences,
+      stats.seconds);
+  return stats;
 }
 
 }  // namespace colmap

@@ -45,6 +45,7 @@
 #pragma once
 
 #include <cstddef>
+#include <vector>
 
 #include "colmap_ext/sfm/mapper_state.h"
 
@@ -118,6 +119,63 @@ FilterStats FilterTracks(const TriangulationOptions& options, MapperState* state
 // number of observations added to triangulated tracks (re-added rejected
 // observations plus all elements of newly triangulated tracks). Updates error.
 size_t RetriangulateTracks(const TriangulationOptions& options, MapperState* state);
+
+// Track completion and merging between bundle adjustments (the facts of
+// COLMAP's IncrementalTriangulator::CompleteAllTracks / MergeAllTracks, on
+// this module's tracks). `correspondences` are keypoint matches between two
+// images, (point2D_idx in image_id1, in image_id2) as in ViewGraphEdge::inliers
+// (`valid`, `cam2_from_cam1` and `weight` are not read): the view graph's
+// edges, valid or not, and possibly more matches; pairs with an unregistered
+// image are ignored. Both steps leave poses alone and go through the tracks in
+// index order, so the result is deterministic.
+//
+// Completion: for every triangulated track, each keypoint linked by a
+// correspondence to one of its observations (and, up to
+// complete_max_transitivity links, to the observations added so far) is added
+// when its image has no observation of the track yet, it is not an active
+// observation of another triangulated track (merging decides those), the point
+// lies in front of its camera and reprojects within
+// complete_max_reprojection_error_px at the current xyz. A keypoint taken from
+// another track (untriangulated, or among its `rejected`) leaves that track.
+//
+// Merging: two triangulated tracks t1 < t2 linked by a correspondence between
+// active observations, with no image in common, become t1 when the point
+// re-triangulated on all their observations (linear, then Levenberg-Marquardt on
+// the pixel error, as TriangulateTracks) lies in front of every camera and
+// reprojects within merge_max_reprojection_error_px in every observation;
+// t2 is left empty (untriangulated) and every keypoint of t2 names t1.
+// Off by default: on the real scenes of scripts/compare_colmap.sh our tracks
+// (union-find over the view graph's inliers) are already closed under the
+// matches, so completion adds < 0.1 % observations and merging almost never
+// applies, with no effect on the cameras (docs/notes/global_mapper_vs_colmap4.md).
+struct TrackCompletionOptions {
+  bool complete = false;
+  double complete_max_reprojection_error_px = 4.0;  // px (COLMAP: 4)
+  // Correspondence links followed from the track's observations (COLMAP: 5).
+  int complete_max_transitivity = 5;
+  bool merge = false;
+  double merge_max_reprojection_error_px = 4.0;  // px (COLMAP: 4)
+  bool Check() const;
+};
+
+struct TrackCompletionStats {
+  size_t num_correspondences = 0;   // distinct links between registered keypoints
+  size_t num_tracks_completed = 0;  // tracks that gained observations
+  size_t num_observations_completed = 0;
+  size_t num_observations_taken = 0;  // of those, taken from another track
+  size_t num_merge_candidates = 0;    // linked track pairs with no common image
+  size_t num_merges = 0;
+  size_t num_observations_merged = 0;  // observations of the tracks merged away
+  double seconds = 0.0;
+};
+
+// Completion, then merging, as described above (each when enabled). Updates
+// error of the changed tracks; `triangulation` gives the refinement
+// iterations and the minimum triangulation angle of a merged track.
+TrackCompletionStats CompleteAndMergeTracks(const TrackCompletionOptions& options,
+                                            const TriangulationOptions& triangulation,
+                                            const std::vector<ViewGraphEdge>& correspondences,
+                                            MapperState* state);
 
 }  // namespace colmap
 }  // namespace lisfm

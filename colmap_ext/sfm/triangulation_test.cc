@@ -1,10 +1,11 @@
 #include "colmap_ext/sfm/triangulation.h"
 
+#include <gtest/gtest.h>
+
+#include <algorithm>
 #include <cmath>
 #include <random>
 #include <vector>
-
-#include <gtest/gtest.h>
 
 #include "core/errors.h"
 #include "tests/common/test_utils.h"
@@ -448,6 +449,182 @@ TEST(FilterTracks, UntriangulatesTracksByObservationsAndAngle) {
     ASSERT_EQ(track.elements.size(), 1u);
     EXPECT_EQ(track.elements[0].image_id, 1u);
   }
+}
+
+// Completion and merging on a synthetic scene: 8 images, every point seen in
+// all of them with 0.5 px noise, 20 % of the keypoints corrupted by 10-40 px
+// (outliers that are still matched); the match graph links every pair of
+// keypoints of the same point. Tracks 0..199 miss two clean observations
+// each; points 200..299 are split into two tracks (images 1-4 and 5-8); 50
+// false matches link observations of different points. Completion and merging
+// must rebuild exactly the clean ground-truth tracks.
+TEST(CompleteAndMergeTracks, RecoversDroppedObservationsAndSplitTracksWithoutOutliers) {
+  constexpr int kImages = 8;
+  constexpr int kCompletionPoints = 200;
+  constexpr int kSplitPoints = 100;
+  Scene scene = MakeScene(kImages, 0, 0.0);
+  std::uniform_real_distribution<double> coord(-2.0, 2.0);
+  std::uniform_real_distribution<double> uniform(0.0, 1.0);
+  // keypoint[p][i]: the keypoint of point p in image i + 1; clean[p][i]: not corrupted.
+  std::vector<std::vector<point2D_t>> keypoint;
+  std::vector<std::vector<bool>> clean;
+  std::vector<Vec3> truth;
+  size_t num_corrupt = 0;
+  for (int p = 0; p < kCompletionPoints + kSplitPoints; ++p) {
+    const Vec3 xyz(coord(test::Rng()), coord(test::Rng()), coord(test::Rng()));
+    truth.push_back(xyz);
+    keypoint.emplace_back();
+    clean.emplace_back();
+    // Each observation is corrupted with probability 0.2; a half (images 1-4,
+    // 5-8) left with fewer than two clean ones stays clean.
+    std::vector<bool> corrupt(kImages);
+    for (int i = 0; i < kImages; ++i) corrupt[i] = uniform(test::Rng()) < 0.2;
+    for (int half = 0; half < 2; ++half) {
+      const int num_clean = static_cast<int>(
+          std::count(corrupt.begin() + 4 * half, corrupt.begin() + 4 * half + 4, false));
+      if (num_clean < 2)
+        std::fill(corrupt.begin() + 4 * half, corrupt.begin() + 4 * half + 4, false);
+    }
+    for (int i = 0; i < kImages; ++i) {
+      const image_t image_id = i + 1;
+      const point2D_t idx = Observe(&scene, image_id, xyz, 0.5);
+      if (corrupt[i]) {
+        SfmImage& image = scene.state.images.at(image_id);
+        const double angle = 2.0 * kPi * uniform(test::Rng());
+        image.keypoints[idx] +=
+            (10.0 + 30.0 * uniform(test::Rng())) * Vec2(std::cos(angle), std::sin(angle));
+        image.normalized[idx] =
+            scene.state.cameras.at(image.camera_id).CamFromImg(image.keypoints[idx]);
+      }
+      keypoint.back().push_back(idx);
+      clean.back().push_back(!corrupt[i]);
+    }
+    num_corrupt += std::count(corrupt.begin(), corrupt.end(), true);
+  }
+  // The ground-truth track of p: its clean observations.
+  auto clean_track = [&](int p, int first, int last) {
+    std::vector<TrackElement> elements;
+    for (int i = first; i <= last; ++i) {
+      if (clean[p][i]) elements.push_back({static_cast<image_t>(i + 1), keypoint[p][i]});
+    }
+    return elements;
+  };
+  // Initial tracks: completion points without two of their clean observations
+  // (when four or more stay), split points as two halves (when each keeps two).
+  std::vector<int> first_track(truth.size(), -1), second_track(truth.size(), -1);
+  size_t num_dropped = 0, num_split = 0;
+  for (int p = 0; p < static_cast<int>(truth.size()); ++p) {
+    std::vector<TrackElement> all = clean_track(p, 0, kImages - 1);
+    if (p >= kCompletionPoints) {
+      std::vector<TrackElement> a = clean_track(p, 0, 3), b = clean_track(p, 4, kImages - 1);
+      if (a.size() >= 2 && b.size() >= 2) {
+        first_track[p] = static_cast<int>(scene.state.tracks.size());
+        AddTrack(&scene, truth[p], a);
+        second_track[p] = static_cast<int>(scene.state.tracks.size());
+        AddTrack(&scene, truth[p], b);
+        ++num_split;
+        continue;
+      }
+    } else if (all.size() >= 4) {
+      std::shuffle(all.begin(), all.end(), test::Rng());
+      all.resize(all.size() - 2);
+      num_dropped += 2;
+      std::sort(all.begin(), all.end(), [](const TrackElement& x, const TrackElement& y) {
+        return x.image_id < y.image_id;
+      });
+    }
+    first_track[p] = static_cast<int>(scene.state.tracks.size());
+    AddTrack(&scene, truth[p], all);
+  }
+  // About 19 % of the 2400 keypoints stay corrupted (a half is left clean with
+  // probability 0.027); every point is split or loses two observations.
+  ASSERT_GT(num_corrupt, 400u);
+  ASSERT_EQ(num_dropped, 2u * kCompletionPoints);
+  ASSERT_EQ(num_split, static_cast<size_t>(kSplitPoints));
+  // Correspondences: every pair of keypoints of one point, plus false matches.
+  std::vector<ViewGraphEdge> correspondences;
+  for (int i = 0; i < kImages; ++i) {
+    for (int j = i + 1; j < kImages; ++j) {
+      ViewGraphEdge edge;
+      edge.image_id1 = i + 1;
+      edge.image_id2 = j + 1;
+      for (size_t p = 0; p < truth.size(); ++p) {
+        edge.inliers.emplace_back(keypoint[p][i], keypoint[p][j]);
+      }
+      if (i == 0 && j == kImages - 1) {
+        for (size_t p = 0; p + 1 < 100; p += 2) {
+          edge.inliers.emplace_back(keypoint[p][i], keypoint[p + 201][j]);
+        }
+      }
+      correspondences.push_back(std::move(edge));
+    }
+  }
+  TriangulateTracks(TriangulationOptions(), &scene.state);
+  for (size_t t = 0; t < scene.state.tracks.size(); ++t) {
+    ASSERT_TRUE(scene.state.tracks[t].triangulated)
+        << "track " << t << " of " << scene.state.tracks[t].elements.size() << " + "
+        << scene.state.tracks[t].rejected.size();
+  }
+
+  TrackCompletionOptions options;
+  options.complete = true;
+  options.merge = true;
+  const TrackCompletionStats stats =
+      CompleteAndMergeTracks(options, TriangulationOptions(), correspondences, &scene.state);
+  EXPECT_EQ(stats.num_observations_completed, num_dropped);
+  EXPECT_EQ(stats.num_merges, num_split);
+  for (size_t p = 0; p < truth.size(); ++p) {
+    const Track& track = scene.state.tracks[first_track[p]];
+    ASSERT_TRUE(track.triangulated) << "point " << p;
+    const std::vector<TrackElement> expected = clean_track(p, 0, kImages - 1);
+    ASSERT_EQ(track.elements.size(), expected.size()) << "point " << p;
+    for (size_t k = 0; k < expected.size(); ++k) {
+      EXPECT_EQ(track.elements[k].image_id, expected[k].image_id) << "point " << p;
+      EXPECT_EQ(track.elements[k].point2D_idx, expected[k].point2D_idx) << "point " << p;
+      EXPECT_EQ(scene.state.images.at(expected[k].image_id).track_ids[expected[k].point2D_idx],
+                first_track[p]);
+    }
+    // Completion keeps xyz; two views 8.6 deg apart at 10 m with 0.5 px noise
+    // (f = 500 px) give a depth standard deviation of about 0.07 m.
+    EXPECT_LT((track.xyz - truth[p]).norm(), 0.3) << "point " << p;
+    if (second_track[p] >= 0) {
+      const Track& merged_away = scene.state.tracks[second_track[p]];
+      EXPECT_FALSE(merged_away.triangulated);
+      EXPECT_TRUE(merged_away.elements.empty());
+    }
+  }
+  // Every corrupted keypoint stays outside the tracks.
+  for (size_t p = 0; p < truth.size(); ++p) {
+    for (int i = 0; i < kImages; ++i) {
+      if (!clean[p][i]) {
+        EXPECT_EQ(scene.state.images.at(i + 1).track_ids[keypoint[p][i]], -1) << "point " << p;
+      }
+    }
+  }
+}
+
+TEST(CompleteAndMergeTracks, OffChangesNothing) {
+  Scene scene = MakeScene(4, 20, 0.5);
+  TriangulateTracks(TriangulationOptions(), &scene.state);
+  const Track last = scene.state.tracks.back();
+  scene.state.tracks.back().elements.pop_back();  // droppable observation, linked below
+  ViewGraphEdge edge;
+  edge.image_id1 = 1;
+  edge.image_id2 = 4;
+  edge.inliers = {{last.elements.front().point2D_idx, last.elements.back().point2D_idx}};
+  TrackCompletionOptions options;
+  options.complete = false;
+  options.merge = false;
+  EXPECT_EQ(CompleteAndMergeTracks(options, TriangulationOptions(), {edge}, &scene.state)
+                .num_observations_completed,
+            0u);
+  EXPECT_EQ(scene.state.tracks.back().elements.size(), 3u);
+  options.complete = true;
+  scene.state.images.at(4).track_ids[last.elements.back().point2D_idx] = -1;
+  EXPECT_EQ(CompleteAndMergeTracks(options, TriangulationOptions(), {edge}, &scene.state)
+                .num_observations_completed,
+            1u);
+  EXPECT_EQ(scene.state.tracks.back().elements.size(), 4u);
 }
 
 TEST(TriangulationOptions, Check) {
