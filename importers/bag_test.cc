@@ -271,6 +271,26 @@ TEST_F(BagTest, CameraTimeShiftIsAppliedOnceAtImport) {
   EXPECT_EQ(FolderRigYaml(a.rig, "text"), "text");
 }
 
+// Walks the top-level records of the bag bytes `bytes` and calls `patch(data_at,
+// data_len)` (data_at: the record's first data byte) for each record whose header has
+// op `op` until it returns true; returns whether one did.
+bool PatchFirstRecord(std::string* bytes, char op,
+                      const std::function<bool(size_t, uint32_t)>& patch) {
+  size_t pos = bytes->find('\n') + 1;
+  while (pos + 8 <= bytes->size()) {
+    uint32_t header_len = 0, data_len = 0;
+    std::memcpy(&header_len, bytes->data() + pos, 4);
+    const std::string header = bytes->substr(pos + 4, header_len);
+    std::memcpy(&data_len, bytes->data() + pos + 4 + header_len, 4);
+    if (header.find(std::string("op=") + op) != std::string::npos &&
+        patch(pos + 8 + header_len, data_len)) {
+      return true;
+    }
+    pos += 8 + size_t{header_len} + data_len;
+  }
+  return false;
+}
+
 TEST_F(BagTest, BadBagsAreOneInputErrorNamingBagTopicAndMessage) {
   const BagPreset velodyne = ReadBagPreset(PresetPath("velodyne"));
   const std::string good = dir_->File("good.bag");
@@ -345,24 +365,15 @@ TEST_F(BagTest, BadBagsAreOneInputErrorNamingBagTopicAndMessage) {
   const std::string moved_offset = dir_->File("moved_offset.bag");
   {
     std::string bytes = ReadFile(good);
-    size_t pos = bytes.find('\n') + 1;
-    bool patched = false;
-    while (!patched && pos + 8 <= bytes.size()) {
-      uint32_t header_len = 0, data_len = 0;
-      std::memcpy(&header_len, bytes.data() + pos, 4);
-      const std::string header = bytes.substr(pos + 4, header_len);
-      std::memcpy(&data_len, bytes.data() + pos + 4 + header_len, 4);
-      if (header.find(std::string("op=\x04", 4)) != std::string::npos && data_len >= 12) {
-        const size_t at = pos + 4 + header_len + 4 + 8;  // the first entry's offset
-        uint32_t offset = 0;
-        std::memcpy(&offset, bytes.data() + at, 4);
-        ++offset;
-        std::memcpy(bytes.data() + at, &offset, 4);
-        patched = true;
-      }
-      pos += 8 + size_t{header_len} + data_len;
-    }
-    ASSERT_TRUE(patched);
+    ASSERT_TRUE(PatchFirstRecord(&bytes, '\x04', [&](size_t data_at, uint32_t data_len) {
+      if (data_len < 12) return false;
+      const size_t at = data_at + 8;  // the first entry's offset
+      uint32_t offset = 0;
+      std::memcpy(&offset, bytes.data() + at, 4);
+      ++offset;
+      std::memcpy(bytes.data() + at, &offset, 4);
+      return true;
+    }));
     test::WriteText(moved_offset, bytes);
   }
   ExpectImportError(moved_offset, velodyne,
@@ -373,23 +384,12 @@ TEST_F(BagTest, BadBagsAreOneInputErrorNamingBagTopicAndMessage) {
   const std::string long_field = dir_->File("long_field.bag");
   {
     std::string bytes = ReadFile(good);
-    size_t pos = bytes.find('\n') + 1;
-    bool patched = false;
-    while (!patched && pos + 8 <= bytes.size()) {
-      uint32_t header_len = 0, data_len = 0;
-      std::memcpy(&header_len, bytes.data() + pos, 4);
-      const std::string header = bytes.substr(pos + 4, header_len);
-      std::memcpy(&data_len, bytes.data() + pos + 4 + header_len, 4);
-      if (header.find(std::string("op=\x05", 4)) != std::string::npos) {
-        // chunk data: u32 inner header length, then the inner header's first field length
-        const size_t field_at = pos + 4 + header_len + 4 + 4;
-        const uint32_t too_long = 60000;
-        std::memcpy(bytes.data() + field_at, &too_long, 4);
-        patched = true;
-      }
-      pos += 8 + size_t{header_len} + data_len;
-    }
-    ASSERT_TRUE(patched);
+    ASSERT_TRUE(PatchFirstRecord(&bytes, '\x05', [&](size_t data_at, uint32_t) {
+      // chunk data: u32 inner header length, then the inner header's first field length
+      const uint32_t too_long = 60000;
+      std::memcpy(bytes.data() + data_at + 4, &too_long, 4);
+      return true;
+    }));
     test::WriteText(long_field, bytes);
   }
   ExpectImportError(long_field, velodyne,
