@@ -108,7 +108,8 @@ std::string ReadFilePrefix(const std::string& path, size_t n) {
 // or what is wrong. ros::Header::parse, which rosbag_storage uses, reads each field's
 // length and bytes without checking them against the header's end, so every field must
 // lie inside the header, including the 4 bytes of its length.
-std::string ParseHeaderFields(const char* header, size_t size,
+std::string ParseHeaderFields(const char* header,
+                              size_t size,
                               std::map<std::string, std::string>* fields) {
   fields->clear();
   for (size_t i = 0; i < size;) {
@@ -131,7 +132,8 @@ std::string ParseHeaderFields(const char* header, size_t size,
 // Walks the records inside a chunk's (uncompressed) data and returns "" when each
 // record, its header fields and its data lie inside the chunk, else what is wrong;
 // `starts` gets each record's offset in the chunk. `chunk_pos` names the chunk.
-std::string ChunkRecordsError(const std::string& chunk, uint64_t chunk_pos,
+std::string ChunkRecordsError(const std::string& chunk,
+                              uint64_t chunk_pos,
                               std::set<uint64_t>* starts) {
   starts->clear();
   std::map<std::string, std::string> fields;
@@ -142,19 +144,26 @@ std::string ChunkRecordsError(const std::string& chunk, uint64_t chunk_pos,
     }
     std::memcpy(&inner_header, chunk.data() + at, 4);
     if (inner_header > chunk.size() - at - 4 || chunk.size() - at - 4 - inner_header < 4) {
-      return fmt::format("chunk at byte {}: record at chunk offset {} has a header of {} "
-                         "bytes past the chunk", chunk_pos, at, inner_header);
+      return fmt::format(
+          "chunk at byte {}: record at chunk offset {} has a header of {} "
+          "bytes past the chunk",
+          chunk_pos,
+          at,
+          inner_header);
     }
-    const std::string field_error =
-        ParseHeaderFields(chunk.data() + at + 4, inner_header, &fields);
+    const std::string field_error = ParseHeaderFields(chunk.data() + at + 4, inner_header, &fields);
     if (!field_error.empty()) {
-      return fmt::format("chunk at byte {}: record at chunk offset {}: {}", chunk_pos, at,
-                         field_error);
+      return fmt::format(
+          "chunk at byte {}: record at chunk offset {}: {}", chunk_pos, at, field_error);
     }
     std::memcpy(&inner_data, chunk.data() + at + 4 + inner_header, 4);
     if (inner_data > chunk.size() - at - 8 - inner_header) {
-      return fmt::format("chunk at byte {}: record at chunk offset {} has data of {} bytes "
-                         "past the chunk", chunk_pos, at, inner_data);
+      return fmt::format(
+          "chunk at byte {}: record at chunk offset {} has data of {} bytes "
+          "past the chunk",
+          chunk_pos,
+          at,
+          inner_data);
     }
     starts->insert(at);
     at += 8 + uint64_t{inner_header} + inner_data;
@@ -164,8 +173,11 @@ std::string ChunkRecordsError(const std::string& chunk, uint64_t chunk_pos,
 
 // Decompresses a chunk's data (`compression` none, lz4 or bz2) into `out`, which must
 // come to exactly `size` bytes, as rosbag_storage expects; returns "" or what is wrong.
-std::string DecompressChunk(std::string data, const std::string& compression, uint32_t size,
-                            uint64_t chunk_pos, std::string* out) {
+std::string DecompressChunk(std::string data,
+                            const std::string& compression,
+                            uint32_t size,
+                            uint64_t chunk_pos,
+                            std::string* out) {
   if (compression == "none") {
     *out = std::move(data);
     return "";
@@ -174,18 +186,24 @@ std::string DecompressChunk(std::string data, const std::string& compression, ui
   unsigned int produced = size;
   bool ok = false;
   if (compression == "lz4") {
-    ok = roslz4_buffToBuffDecompress(data.data(), static_cast<unsigned int>(data.size()),
-                                     out->data(), &produced) == ROSLZ4_OK;
+    ok = roslz4_buffToBuffDecompress(
+             data.data(), static_cast<unsigned int>(data.size()), out->data(), &produced) ==
+         ROSLZ4_OK;
   } else if (compression == "bz2") {
-    ok = BZ2_bzBuffToBuffDecompress(out->data(), &produced, data.data(),
-                                    static_cast<unsigned int>(data.size()), 0, 0) == BZ_OK;
+    ok = BZ2_bzBuffToBuffDecompress(
+             out->data(), &produced, data.data(), static_cast<unsigned int>(data.size()), 0, 0) ==
+         BZ_OK;
   } else {
-    return fmt::format("chunk at byte {}: compression '{}' is not none, lz4 or bz2", chunk_pos,
-                       compression);
+    return fmt::format(
+        "chunk at byte {}: compression '{}' is not none, lz4 or bz2", chunk_pos, compression);
   }
   if (!ok || produced != size) {
-    return fmt::format("chunk at byte {}: its {} data does not decompress to the {} bytes "
-                       "announced", chunk_pos, compression, size);
+    return fmt::format(
+        "chunk at byte {}: its {} data does not decompress to the {} bytes "
+        "announced",
+        chunk_pos,
+        compression,
+        size);
   }
   return "";
 }
@@ -283,8 +301,11 @@ std::string BagRecordError(const std::string& path, uint64_t first_record) {
         uint32_t offset = 0;
         std::memcpy(&offset, entries.data() + e + 8, 4);
         if (chunk_inner_starts.count(offset) == 0) {
-          return fmt::format("index at byte {}: message offset {} is not a record start in its "
-                             "chunk", pos, offset);
+          return fmt::format(
+              "index at byte {}: message offset {} is not a record start in its "
+              "chunk",
+              pos,
+              offset);
         }
       }
     }
@@ -294,8 +315,8 @@ std::string BagRecordError(const std::string& path, uint64_t first_record) {
   // start of a record (index_pos 0 marks an unindexed bag, which rosbag_storage refuses).
   for (const auto& [record, target, name] : pointers) {
     if (target != 0 && record_starts.count(target) == 0) {
-      return fmt::format("record at byte {}: {} {} is not the start of a record", record, name,
-                         target);
+      return fmt::format(
+          "record at byte {}: {} {} is not the start of a record", record, name, target);
     }
   }
   return "";
@@ -319,8 +340,8 @@ std::string BagVersionAndRecordError(const std::string& path) {
   int major = 0, minor = 0;
   if (std::sscanf(line.c_str(), "#ROS%99s V%d.%d", name, &major, &minor) != 3) return "";
   if (major != 2 || minor != 0) {
-    return fmt::format("bag format version {}.{}; only 2.0 is read (`rosbag fix` converts)",
-                       major, minor);
+    return fmt::format(
+        "bag format version {}.{}; only 2.0 is read (`rosbag fix` converts)", major, minor);
   }
   return BagRecordError(path, newline + 1);
 }

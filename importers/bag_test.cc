@@ -274,7 +274,8 @@ TEST_F(BagTest, CameraTimeShiftIsAppliedOnceAtImport) {
 // Walks the top-level records of the bag bytes `bytes` and calls `patch(data_at,
 // data_len)` (data_at: the record's first data byte) for each record whose header has
 // op `op` until it returns true; returns whether one did.
-bool PatchFirstRecord(std::string* bytes, char op,
+bool PatchFirstRecord(std::string* bytes,
+                      char op,
                       const std::function<bool(size_t, uint32_t)>& patch) {
   size_t pos = bytes->find('\n') + 1;
   while (pos + 8 <= bytes->size()) {
@@ -332,8 +333,8 @@ TEST_F(BagTest, BadBagsAreOneInputErrorNamingBagTopicAndMessage) {
     bytes.replace(14, 4, "\xf0\xff\xff\xff");
     test::WriteText(long_version, bytes);
   }
-  ExpectImportError(long_version, velodyne,
-                    {long_version, "record at byte 14: header of 4294967280 bytes"});
+  ExpectImportError(
+      long_version, velodyne, {long_version, "record at byte 14: header of 4294967280 bytes"});
 
   // Another format version.
   const std::string old_version = dir_->File("old_version.bag");
@@ -357,7 +358,8 @@ TEST_F(BagTest, BadBagsAreOneInputErrorNamingBagTopicAndMessage) {
     std::memcpy(bytes.data() + key + 10, &index_pos, 8);
     test::WriteText(bad_index, bytes);
   }
-  ExpectImportError(bad_index, velodyne,
+  ExpectImportError(bad_index,
+                    velodyne,
                     {bad_index, "record at byte 13: index_pos", "is not the start of a record"});
 
   // An index entry whose message offset is not a record start inside its (uncompressed)
@@ -376,7 +378,8 @@ TEST_F(BagTest, BadBagsAreOneInputErrorNamingBagTopicAndMessage) {
     }));
     test::WriteText(moved_offset, bytes);
   }
-  ExpectImportError(moved_offset, velodyne,
+  ExpectImportError(moved_offset,
+                    velodyne,
                     {moved_offset, "message offset", "is not a record start in its chunk"});
 
   // A header field length past its record's header inside an uncompressed chunk
@@ -392,9 +395,11 @@ TEST_F(BagTest, BadBagsAreOneInputErrorNamingBagTopicAndMessage) {
     }));
     test::WriteText(long_field, bytes);
   }
-  ExpectImportError(long_field, velodyne,
-                    {long_field, "record at chunk offset 0: header field of 60000 bytes past "
-                                 "the header"});
+  ExpectImportError(long_field,
+                    velodyne,
+                    {long_field,
+                     "record at chunk offset 0: header field of 60000 bytes past "
+                     "the header"});
 
   // A header that ends inside a field length (ros::Header::parse reads all 4 bytes): the
   // bag header record at byte 13 keeps its first field and 2 bytes of the next one.
@@ -407,7 +412,8 @@ TEST_F(BagTest, BadBagsAreOneInputErrorNamingBagTopicAndMessage) {
     std::memcpy(bytes.data() + 13, &header_len, 4);
     test::WriteText(cut_field, bytes);
   }
-  ExpectImportError(cut_field, velodyne,
+  ExpectImportError(cut_field,
+                    velodyne,
                     {cut_field, "record at byte 13: header ends 2 bytes into a field length"});
 
   // A corrupted lz4 chunk in the middle of a bag.
@@ -420,8 +426,7 @@ TEST_F(BagTest, BadBagsAreOneInputErrorNamingBagTopicAndMessage) {
     }
     test::WriteText(corrupted, bytes);
   }
-  ExpectImportError(
-      corrupted, velodyne, {corrupted, "lz4 data does not decompress to the"});
+  ExpectImportError(corrupted, velodyne, {corrupted, "lz4 data does not decompress to the"});
 
   // A preset whose IMU topic the bag does not have.
   BagPreset no_imu = velodyne;
