@@ -169,8 +169,16 @@ PcdHeader ParsePcdHeader(const std::string& path, uint64_t file_size, std::strin
   const std::string_view head = file.substr(0, kMaxHeaderBytes);
   PcdHeader h;
   std::map<std::string, int> seen;  // keyword -> line
+  size_t line_start = 0;
   const bool found_data = ForEachLine(head, 0, 1, [&](const std::string& raw, int line, size_t next) {
+    const std::string_view original = head.substr(line_start, next - line_start);  // with '\n'
+    line_start = next;
     const std::string text = Trim(raw);
+    if (text.empty() && original.find_first_not_of('\n') != std::string_view::npos) {
+      // PCL's header reader skips empty lines only; a line of white space (e.g. "\r" of a
+      // CRLF blank line) makes it read an empty token list (a crash in PCL 1.13).
+      throw InputError(path, Where(line), "a header line of white space only (PCL cannot read it)");
+    }
     if (text.empty() || text[0] == '#') return true;
     const std::vector<std::string> tokens = SplitString(text, " \t");
     std::string keyword = tokens[0];

@@ -574,6 +574,13 @@ TEST(CloudIoBadInput, PcdHeaderMismatches) {
   expect("FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nWIDTH -2\nDATA ascii\n", "line 4: WIDTH");
   expect("FIELDS x y z\nFIELDS x y z\n", "line 2: FIELDS appears twice");
   expect("SIZE 4 4 4\nTYPE F F F\nWIDTH 1\nDATA ascii\n1 2 3\n", "no FIELDS line");
+  // A header line of white space only (PCL's reader would crash on it); an empty line is fine.
+  expect("\r\n" + ValidPcdHeader("x y z", "4 4 4", "F F F", 1, "ascii") + "1 2 3\n",
+         "line 1: a header line of white space only");
+  expect("# .PCD v0.7\n \n" + ValidPcdHeader("x y z", "4 4 4", "F F F", 1, "ascii") + "1 2 3\n",
+         "line 2: a header line of white space only");
+  test::WriteText(path, "\n" + ValidPcdHeader("x y z", "4 4 4", "F F F", 1, "ascii") + "1 2 3\n");
+  EXPECT_EQ(ReadPcd(path).size(), 1u);
   // Ascii bodies.
   expect(ValidPcdHeader("x y z", "4 4 4", "F F F", 2, "ascii") + "1 2 3\n", "expected 2 points, found 1");
   expect(ValidPcdHeader("x y z", "4 4 4", "F F F", 1, "ascii") + "1 2 3\n4 5 6\n", "line 11: more data lines");
