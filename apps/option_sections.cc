@@ -1114,6 +1114,26 @@ void AddMaterialOptions(OptionManager* options, sim::MaterialOptions* materials)
 
 void AddGlobalMapperOptions(OptionManager* options,
                             colmap::GlobalMapperOptions* mapper) {
+  options->AddDouble("Mapper.initial_reprojection_error_factor",
+                     &mapper->initial_reprojection_error_factor,
+                     "the first triangulation (poses from averaging) keeps observations "
+                     "within this times Triangulation.max_reprojection_error_px",
+                     R::AtLeast(1));
+  options->AddDouble("Mapper.min_focal_length_ratio",
+                     &mapper->min_focal_length_ratio,
+                     "frames whose camera has a focal length / max(width, height) below "
+                     "this after bundle adjustment are dropped",
+                     R::GreaterThan(0).AndAtMost(1));
+  options->AddDouble("Mapper.max_focal_length_ratio",
+                     &mapper->max_focal_length_ratio,
+                     "frames whose camera has a focal length / max(width, height) above "
+                     "this after bundle adjustment are dropped",
+                     R::AtLeast(1));
+  options->AddDouble("Mapper.max_extra_param",
+                     &mapper->max_extra_param,
+                     "frames whose camera has a distortion parameter |k| above this after "
+                     "bundle adjustment are dropped",
+                     R::GreaterThan(0));
   options->AddInt("Mapper.num_refinement_rounds",
                   &mapper->num_refinement_rounds,
                   "rounds of bundle adjustment -> filter -> retriangulate "

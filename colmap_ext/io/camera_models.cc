@@ -1,7 +1,10 @@
 #include "colmap_ext/io/camera_models.h"
 
+#include <algorithm>
 #include <array>
 #include <cmath>
+
+#include <fmt/format.h>
 
 #include "core/errors.h"
 
@@ -68,6 +71,36 @@ bool Camera::VerifyParams() const {
 double Camera::MeanFocalLength() const {
   THROW_CHECK(VerifyParams());
   return Models()[model_id].num_focal_params == 1 ? params[0] : 0.5 * (params[0] + params[1]);
+}
+
+bool Camera::HasBogusParams(double min_focal_length_ratio,
+                            double max_focal_length_ratio,
+                            double max_extra_param,
+                            std::string* reason) const {
+  THROW_CHECK(VerifyParams());
+  const int num_focal = Models()[model_id].num_focal_params;
+  const double max_size = static_cast<double>(std::max(width, height));
+  for (int i = 0; i < num_focal; ++i) {
+    const double ratio = params[i] / max_size;
+    if (ratio < min_focal_length_ratio || ratio > max_focal_length_ratio) {
+      if (reason != nullptr) {
+        *reason = fmt::format("{} = {:.1f} px is {:.2f}x max(width, height), outside [{}, {}]",
+                              num_focal == 1 ? "f" : (i == 0 ? "fx" : "fy"), params[i], ratio,
+                              min_focal_length_ratio, max_focal_length_ratio);
+      }
+      return true;
+    }
+  }
+  for (size_t i = static_cast<size_t>(num_focal) + 2; i < params.size(); ++i) {
+    if (std::abs(params[i]) > max_extra_param) {
+      if (reason != nullptr) {
+        *reason = fmt::format("extra parameter {} = {:.3g}, |value| > {}",
+                              i - static_cast<size_t>(num_focal) - 2, params[i], max_extra_param);
+      }
+      return true;
+    }
+  }
+  return false;
 }
 
 double Camera::PrincipalPointX() const {

@@ -61,6 +61,15 @@ struct Camera {
   double MeanFocalLength() const;
   double PrincipalPointX() const;
   double PrincipalPointY() const;
+  // COLMAP's bogus-parameter test (Camera::HasBogusParams): a focal length
+  // divided by max(width, height) outside [min_focal_length_ratio,
+  // max_focal_length_ratio], or an extra (distortion) parameter with
+  // |value| > max_extra_param. `reason` (optional) gets which, e.g.
+  // "fx = 66444.0 px is 92.28x max(width, height)".
+  bool HasBogusParams(double min_focal_length_ratio,
+                      double max_focal_length_ratio,
+                      double max_extra_param,
+                      std::string* reason = nullptr) const;
 
   // Normalised image plane (x/z, y/z) -> pixel, with distortion.
   Vec2 ImgFromCam(const Vec2& normalized) const;

@@ -86,6 +86,34 @@ TEST(CameraModels, PinholeProjectionIsExact) {
   EXPECT_DOUBLE_EQ(camera.MeanFocalLength(), 505);
 }
 
+// COLMAP's bogus-parameter test: focal length / max(width, height) and
+// |distortion parameter| bounds (mapper defaults 0.1, 10, 1).
+TEST(CameraModels, BogusParamsFollowCOLMAPsBounds) {
+  Camera c;
+  c.camera_id = 3;
+  c.model_id = static_cast<int>(CameraModelId::kPinhole);
+  c.width = 720;
+  c.height = 540;
+  c.params = {350.0, 352.0, 360.0, 270.0};
+  std::string why;
+  EXPECT_FALSE(c.HasBogusParams(0.1, 10.0, 1.0, &why));
+  EXPECT_EQ(why, "");
+  c.params[1] = 7300.0;  // 10.14x the 720 px side
+  EXPECT_TRUE(c.HasBogusParams(0.1, 10.0, 1.0, &why));
+  EXPECT_NE(why.find("fy = 7300.0 px is 10.14x max(width, height)"), std::string::npos) << why;
+  c.params[1] = 71.0;  // 0.0986x
+  EXPECT_TRUE(c.HasBogusParams(0.1, 10.0, 1.0));
+  c.params[1] = 73.0;  // 0.101x
+  EXPECT_FALSE(c.HasBogusParams(0.1, 10.0, 1.0));
+  c.model_id = static_cast<int>(CameraModelId::kSimpleRadial);
+  c.params = {350.0, 360.0, 270.0, -0.2};
+  EXPECT_FALSE(c.HasBogusParams(0.1, 10.0, 1.0));
+  c.params[3] = -1.2;
+  EXPECT_TRUE(c.HasBogusParams(0.1, 10.0, 1.0, &why));
+  EXPECT_NE(why.find("extra parameter 0 = -1.2"), std::string::npos) << why;
+  EXPECT_FALSE(c.HasBogusParams(0.1, 10.0, 1.5));
+}
+
 TEST(CameraModels, FromRigCalibrationShiftsPrincipalPointByHalfAPixel) {
   CameraModel model;
   model.width = 720;

@@ -177,6 +177,51 @@ size_t DropWeakFrames(int min_observations, const std::map<camera_t, Camera>& pr
   return weak.size();
 }
 
+// Registered frames with a camera whose parameters are bogus after bundle
+// adjustment (GlobalMapperOptions::min/max_focal_length_ratio,
+// max_extra_param) are unregistered, each with a warning naming the camera
+// and the parameter. Returns how many.
+size_t DropBogusCameraFrames(const GlobalMapperOptions& options,
+                             const std::map<camera_t, Camera>& prior_cameras,
+                             MapperState* state) {
+  std::map<frame_t, std::string> bogus;  // frame -> reason
+  std::set<camera_t> kept_cameras;
+  for (const auto& [frame_id, frame] : state->frames) {
+    if (!frame.registered) continue;
+    std::string reason;
+    for (const image_t image_id : frame.image_ids) {
+      const camera_t camera_id = state->images.at(image_id).camera_id;
+      std::string why;
+      if (state->cameras.at(camera_id).HasBogusParams(options.min_focal_length_ratio,
+                                                      options.max_focal_length_ratio,
+                                                      options.max_extra_param, &why)) {
+        reason = fmt::format("camera {}: {}", camera_id, why);
+        break;
+      }
+    }
+    if (!reason.empty()) {
+      bogus[frame_id] = reason;
+    } else {
+      for (const image_t id : frame.image_ids) kept_cameras.insert(state->images.at(id).camera_id);
+    }
+  }
+  for (const auto& [frame_id, reason] : bogus) {
+    std::string focal;
+    for (const image_t image_id : state->frames.at(frame_id).image_ids) {
+      focal = SuspectFocalLength(*state, prior_cameras, kept_cameras,
+                                 state->images.at(image_id).camera_id);
+      if (!focal.empty()) break;
+    }
+    LogWarning("global_mapper: dropped frame {}: bundle adjustment gave it bogus camera "
+               "parameters ({}; Mapper.min_focal_length_ratio / max_focal_length_ratio / "
+               "max_extra_param){}",
+               FrameNames(*state, {frame_id}), reason, focal);
+    state->frames.at(frame_id).registered = false;
+  }
+  if (!bogus.empty()) DropUnregisteredObservations(state);
+  return bogus.size();
+}
+
 MapperModelCounts ModelCounts(const MapperState& state) {
   MapperModelCounts counts;
   counts.registered_frames = state.NumRegisteredFrames();
@@ -393,7 +438,9 @@ void TrackStage(const GlobalMapperOptions& options, MapperState* state,
                 MapperComponentSummary* comp) {
   const auto t0 = Clock::now();
   comp->tracks = BuildTracks(options.tracks, state);
-  comp->triangulation = TriangulateTracks(options.triangulation, state);
+  TriangulationOptions initial = options.triangulation;
+  initial.max_reprojection_error_px *= options.initial_reprojection_error_factor;
+  comp->triangulation = TriangulateTracks(initial, state);
   comp->tracks_seconds = SecondsSince(t0);
 }
 
@@ -416,13 +463,15 @@ BundleAdjustmentOptions RoundBundleAdjustmentOptions(const GlobalMapperOptions& 
   return ba_options;
 }
 
-// One refinement round of component `c`: bundle adjustment, then (points
+// One refinement round of component `c`: bundle adjustment (frames with
+// bogus cameras dropped after it), then (points
 // left out of a subsampled adjustment re-triangulated) filtering and, except
 // in the final round, retriangulation.
 MapperRoundSummary RefinementRound(const GlobalMapperOptions& options,
                                    size_t c,
                                    int round,
                                    const std::vector<ViewGraphEdge>& database_matches,
+                                   const std::map<camera_t, Camera>& prior_cameras,
                                    MapperState* state) {
   MapperRoundSummary r;
   r.final_round = round == options.num_refinement_rounds;
@@ -431,6 +480,7 @@ MapperRoundSummary RefinementRound(const GlobalMapperOptions& options,
   r.bundle_adjustment_skipped = options.skip_bundle_adjustment;
   if (!r.bundle_adjustment_skipped) {
     r.bundle_adjustment = RunBundleAdjustment(ba_options, state);
+    r.dropped_bogus_camera_frames = DropBogusCameraFrames(options, prior_cameras, state);
   }
   r.bundle_adjustment_seconds = SecondsSince(t0);
   t0 = Clock::now();
@@ -529,7 +579,7 @@ bool ReconstructComponent(const MapperState& base,
   }
   TrackStage(options, &state, &comp);
   for (int round = 0; round <= options.num_refinement_rounds; ++round) {
-    comp.refinement.push_back(RefinementRound(options, c, round, database_matches, &state));
+    comp.refinement.push_back(RefinementRound(options, c, round, database_matches, base.cameras, &state));
   }
   LogRigFromPrior(c, state, comp);
   comp.dropped_weak_frames = DropWeakFrames(options.min_frame_observations, base.cameras, &state);
@@ -551,6 +601,11 @@ bool GlobalMapperOptions::Check() const {
   CHECK_OPTION_NESTED(translation_averaging);
   CHECK_OPTION_NESTED(tracks);
   CHECK_OPTION_NESTED(triangulation);
+  CHECK_OPTION_GE(initial_reprojection_error_factor, 1.0);
+  CHECK_OPTION_MSG(min_focal_length_ratio,
+                   min_focal_length_ratio > 0.0 && min_focal_length_ratio <= 1.0, "in (0, 1]");
+  CHECK_OPTION_GE(max_focal_length_ratio, 1.0);
+  CHECK_OPTION_GT(max_extra_param, 0.0);
   CHECK_OPTION_NESTED(track_completion);
   CHECK_OPTION_NESTED(bundle_adjustment);
   CHECK_OPTION_GE(num_refinement_rounds, 0);

@@ -57,6 +57,14 @@ struct GlobalMapperOptions {
   TranslationAveragingOptions translation_averaging;
   TrackOptions tracks;
   TriangulationOptions triangulation;
+  // The first triangulation, on the poses of rotation and translation
+  // averaging, keeps observations within this factor (>= 1) times
+  // triangulation.max_reprojection_error_px (which every later triangulation
+  // and filter uses). Averaged poses are off by a few tenths of a degree
+  // (several pixels at the image border): a tight first threshold rejects
+  // correct observations, and the first bundle adjustment then settles where
+  // they do not fit.
+  double initial_reprojection_error_factor = 3.0;
   // Completion and merging of the tracks at the end of each refinement round
   // (after its retriangulation, before the next adjustment).
   TrackCompletionOptions track_completion;
@@ -80,6 +88,15 @@ struct GlobalMapperOptions {
   // Iteration cap of that final full adjustment (it starts from the
   // subsampled optimum).
   int final_max_num_iterations = 5;
+  // After each bundle adjustment, frames with a camera whose parameters are
+  // bogus (Camera::HasBogusParams: focal length / max(width, height) outside
+  // [min_focal_length_ratio in (0, 1], max_focal_length_ratio >= 1], or a distortion
+  // parameter above max_extra_param; COLMAP's mapper defaults) are
+  // unregistered: a wrong prior focal length lets the adjustment fit a
+  // degenerate far-away camera to its observations.
+  double min_focal_length_ratio = 0.1;
+  double max_focal_length_ratio = 10.0;
+  double max_extra_param = 1.0;
   // Components with fewer frames are not reconstructed.
   int min_component_frames = 2;
   // Reconstruct every component (COLMAP writes one model per component);
@@ -123,6 +140,7 @@ struct MapperRoundSummary {
   bool bundle_adjustment_skipped = false;
   BundleAdjustmentStats bundle_adjustment;  // default when skipped
   double bundle_adjustment_seconds = 0.0;
+  size_t dropped_bogus_camera_frames = 0;  // unregistered after the adjustment
   size_t filtered_observations = 0;  // rejected for depth or reprojection error
   bool final_round = false;          // no retriangulation in the final round
   bool retriangulation_skipped = false;

@@ -3,6 +3,7 @@
 #include "colmap_ext/sfm/global_mapper.h"
 
 #include <cmath>
+#include <iostream>
 
 #include <gtest/gtest.h>
 
@@ -362,6 +363,54 @@ TEST(GlobalMapper, SkipAveragingStartsFromThePriors) {
   // pipeline (RigWithPriorsAndLidarConstraintsIsMetric): 0.05 deg, 5 mm.
   EXPECT_LT(se3.max_rotation_deg, 0.05);
   EXPECT_LT(se3.max_position, 0.005);
+}
+
+// The first triangulation runs on averaged poses, which are off by a few
+// tenths of a degree: its threshold (initial_reprojection_error_factor) keeps
+// the observations such pose errors push past the final 4 px, and the first
+// bundle adjustment brings them back under it. Here the starting poses are
+// priors 0.3 deg / 3 cm off (averaging skipped, priors not in the adjustment).
+TEST(GlobalMapper, LooseFirstTriangulationKeepsObservationsOfRoughPoses) {
+  test::TempDir dir;
+  SyntheticDatasetOptions o = RingSceneOptions();
+  o.num_frames = 8;
+  o.outlier_match_ratio = 0.0;
+  o.outlier_pair_ratio = 0.0;
+  o.prior_position_noise = 0.03;
+  o.prior_rotation_noise = 0.3 * M_PI / 180.0;
+  const SyntheticDataset dataset = WriteScene(o, dir);
+  const Database database(dir.File("db.db"), Database::OpenMode::kReadOnly);
+  GlobalMapperOptions options;
+  options.skip_rotation_averaging = true;
+  options.skip_translation_averaging = true;
+  options.bundle_adjustment.use_priors = false;
+  options.num_refinement_rounds = 0;  // one adjustment, then the final filter
+  const auto run = [&](double factor) {
+    options.initial_reprojection_error_factor = factor;
+    return RunGlobalMapper(database, nullptr, {}, "", options);
+  };
+  const GlobalMapperResult tight = run(1.0);  // 4 px
+  const GlobalMapperResult loose = run(GlobalMapperOptions().initial_reprojection_error_factor);
+  ASSERT_EQ(tight.models.size(), 1u) << Describe(tight.summary);
+  ASSERT_EQ(loose.models.size(), 1u) << Describe(loose.summary);
+  const TriangulationStats& t = tight.summary.components.front().triangulation;
+  const TriangulationStats& l = loose.summary.components.front().triangulation;
+  size_t num_true = 0;
+  for (const SyntheticImage& image : dataset.images) {
+    for (const SyntheticKeypoint& k : image.keypoints) num_true += k.point_index >= 0 ? 1 : 0;
+  }
+  std::cout << "first triangulation rejects " << t.num_observations_rejected_reprojection
+            << " (4 px) vs " << l.num_observations_rejected_reprojection << " ("
+            << 4.0 * options.initial_reprojection_error_factor << " px) of " << num_true
+            << " true observations; final observations " << tight.models.front().ComputeNumObservations()
+            << " vs " << loose.models.front().ComputeNumObservations() << "\n";
+  EXPECT_LT(l.num_observations_rejected_reprojection, 0.01 * num_true);
+  EXPECT_GT(t.num_observations_rejected_reprojection, 5 * l.num_observations_rejected_reprojection);
+  EXPECT_GT(loose.models.front().ComputeNumObservations(),
+            tight.models.front().ComputeNumObservations());
+  const PoseErrors e = Evaluate(loose.models.front(), dataset, /*estimate_scale=*/true);
+  EXPECT_LT(e.max_rotation_deg, 0.05);
+  EXPECT_LT(e.max_position, 0.005);
 }
 
 // Without rotation priors skip_rotation_averaging registers no frame: no

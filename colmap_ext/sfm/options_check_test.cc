@@ -164,6 +164,12 @@ TEST(SfmOptionsCheck, MapperAndEvaluation) {
        [](G* o) { o->final_max_num_iterations = -1; }},
       {"min_component_frames", [](G* o) { o->min_component_frames = 0; }},
       {"min_frame_observations", [](G* o) { o->min_frame_observations = -1; }},
+      {"initial_reprojection_error_factor",
+       [](G* o) { o->initial_reprojection_error_factor = 0.9; }},
+      {"min_focal_length_ratio", [](G* o) { o->min_focal_length_ratio = 0.0; }},
+      {"min_focal_length_ratio", [](G* o) { o->min_focal_length_ratio = 1.5; }},
+      {"max_focal_length_ratio", [](G* o) { o->max_focal_length_ratio = 0.5; }},
+      {"max_extra_param", [](G* o) { o->max_extra_param = 0.0; }},
       {"lidar_constraint_tolerance_ms",
        [](G* o) { o->lidar_constraint_tolerance_ms = -1.0; }},
   });
