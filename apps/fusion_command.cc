@@ -27,7 +27,6 @@
 #include <functional>
 #include <nlohmann/json.hpp>
 #include <opencv2/core.hpp>
-#include <opencv2/imgcodecs.hpp>
 #include <optional>
 #include <string>
 #include <utility>
@@ -35,6 +34,7 @@
 
 #include "apps/commands.h"
 #include "apps/option_sections.h"
+#include "core/io/image_codec.h"
 #include "core/errors.h"
 #include "core/file_utils.h"
 #include "core/io/cloud_io.h"
@@ -156,7 +156,7 @@ void WriteNormalMapPng(const std::string& path,
       image.at<cv::Vec3b>(v, u) = cv::Vec3b(to_byte(n.z()), to_byte(n.y()), to_byte(n.x()));  // BGR
     }
   }
-  if (!cv::imwrite(path, image)) throw InputError(path, "", "cannot write the PNG image");
+  if (!WritePngFile(path, image)) throw InputError(path, "", "cannot write the PNG image");
 }
 
 // The stable surfels' normals (sensor frame) seen from world_from_sensor in a
@@ -189,7 +189,7 @@ void WriteSphericalNormalMapPng(const std::string& path,
       image.at<cv::Vec3b>(v, u) = cv::Vec3b(to_byte(n.z()), to_byte(n.y()), to_byte(n.x()));  // BGR
     }
   }
-  if (!cv::imwrite(path, image)) throw InputError(path, "", "cannot write the PNG image");
+  if (!WritePngFile(path, image)) throw InputError(path, "", "cannot write the PNG image");
 }
 
 // Writes the outputs both modes share: trajectory.txt, surfels.ply, the two

@@ -58,6 +58,7 @@ nlohmann::json RoundToJson(const MapperRoundSummary& r) {
     }
   }
   j["filtered_observations"] = r.filtered_observations;
+  j["reset_bogus_cameras"] = r.reset_bogus_cameras;
   if (r.retriangulation_skipped) {
     j["retriangulation_skipped"] = true;
   } else if (!r.final_round) {

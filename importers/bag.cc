@@ -23,13 +23,13 @@
 #include <map>
 #include <memory>
 #include <opencv2/core.hpp>
-#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <set>
 #include <sstream>
 #include <tuple>
 #include <vector>
 
+#include "core/io/image_codec.h"
 #include "core/errors.h"
 #include "core/file_utils.h"
 #include "core/io/cloud_io.h"
@@ -637,7 +637,7 @@ BagImportSummary ImportBag(const std::string& bag_path,
   }
 
   std::vector<ImuSample> imu;
-  const std::vector<int> png_params = {cv::IMWRITE_PNG_COMPRESSION, 1};
+  constexpr int kPngCompression = 1;
   const TimestampNs camera_min_dt_ns =
       options.camera_rate_hz > 0 ? static_cast<TimestampNs>(0.9e9 / options.camera_rate_hz) : 0;
   std::map<std::string, size_t> counters;
@@ -779,8 +779,8 @@ BagImportSummary ImportBag(const std::string& bag_path,
         if (enc == "rgb8") cv::cvtColor(view_mat, image, cv::COLOR_RGB2BGR);
         const std::string path =
             JoinPaths(output_dir, s.folder + "/data/" + std::to_string(t_ns) + ".png");
-        if (!cv::imwrite(path, image, png_params)) {
-          throw InputError(path, "image", "cv::imwrite failed");
+        if (!WritePngFile(path, image, kPngCompression)) {
+          throw InputError(path, "image", "cannot write the PNG image");
         }
         s.kept.push_back(t_ns);
         s.last_kept = t_ns;
@@ -928,8 +928,9 @@ BagExportSummary ExportBag(const std::string& seq_root,
     for (size_t k = 0; k < seq.camera_frames.size() && k < preset.camera_topics.size(); ++k) {
       for (size_t i = 0; i < seq.camera_frames[k].size(); ++i) {
         const SensorFile& f = seq.camera_frames[k][i];
-        const cv::Mat image = cv::imread(f.path, cv::IMREAD_UNCHANGED);
-        if (image.empty()) throw InputError(f.path, "image", "cannot read");
+        std::string why;
+        const cv::Mat image = ReadImageFile(f.path, ImageReadMode::kUnchanged, &why);
+        if (image.empty()) throw InputError(f.path, "image", "cannot read: " + why);
         if (image.depth() != CV_8U || (image.channels() != 1 && image.channels() != 3)) {
           throw InputError(f.path, "image", "expected an 8-bit grey or BGR image");
         }

@@ -6,7 +6,7 @@ set -euo pipefail
 PACKAGES=(
   build-essential cmake pkg-config git bc
   libeigen3-dev libceres-dev libsuitesparse-dev libgoogle-glog-dev libgflags-dev
-  libopencv-dev libpcl-dev libflann-dev libnanoflann-dev
+  libopencv-dev libpcl-dev libflann-dev libnanoflann-dev libpng-dev libjpeg62-turbo-dev
   libyaml-cpp-dev libcli11-dev libspdlog-dev libfmt-dev nlohmann-json3-dev
   libsqlite3-dev sqlite3 libtbb-dev
   libgtest-dev libgmock-dev googletest libbenchmark-dev

@@ -9,6 +9,7 @@
 #include <limits>
 #include <map>
 #include <memory>
+#include <numeric>
 #include <set>
 #include <thread>
 #include <unordered_map>
@@ -825,6 +826,11 @@ void HoldIntrinsics(const BundleAdjustmentOptions& options, const MapperState& s
     THROW_CHECK_MSG(camera.VerifyParams(), "camera " << camera.camera_id << " is invalid");
     const CameraParamGroups groups = CameraModelParamGroups(camera.model_id);
     std::vector<int>& constant = spec->constant_params[camera_id];
+    if (state.constant_intrinsics.count(camera_id) > 0) {
+      constant.resize(camera.params.size());
+      std::iota(constant.begin(), constant.end(), 0);
+      continue;
+    }
     if (!options.refine_focal_length) {
       constant.insert(constant.end(), groups.focal.begin(), groups.focal.end());
     }

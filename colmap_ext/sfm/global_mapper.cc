@@ -177,49 +177,41 @@ size_t DropWeakFrames(int min_observations, const std::map<camera_t, Camera>& pr
   return weak.size();
 }
 
-// Registered frames with a camera whose parameters are bogus after bundle
+// Cameras of registered frames whose parameters are bogus after bundle
 // adjustment (GlobalMapperOptions::min/max_focal_length_ratio,
-// max_extra_param) are unregistered, each with a warning naming the camera
-// and the parameter. Returns how many.
-size_t DropBogusCameraFrames(const GlobalMapperOptions& options,
-                             const std::map<camera_t, Camera>& prior_cameras,
-                             MapperState* state) {
-  std::map<frame_t, std::string> bogus;  // frame -> reason
-  std::set<camera_t> kept_cameras;
+// max_extra_param) are reset to their prior parameters (`prior_cameras`) and
+// held constant in later adjustments (MapperState::constant_intrinsics), each
+// with a warning naming the camera, the parameter and the frames that use it.
+// Returns how many.
+size_t ResetBogusCameras(const GlobalMapperOptions& options,
+                         const std::map<camera_t, Camera>& prior_cameras,
+                         MapperState* state) {
+  std::map<camera_t, std::vector<frame_t>> users;
   for (const auto& [frame_id, frame] : state->frames) {
     if (!frame.registered) continue;
-    std::string reason;
-    for (const image_t image_id : frame.image_ids) {
-      const camera_t camera_id = state->images.at(image_id).camera_id;
-      std::string why;
-      if (state->cameras.at(camera_id).HasBogusParams(options.min_focal_length_ratio,
-                                                      options.max_focal_length_ratio,
-                                                      options.max_extra_param, &why)) {
-        reason = fmt::format("camera {}: {}", camera_id, why);
-        break;
-      }
-    }
-    if (!reason.empty()) {
-      bogus[frame_id] = reason;
-    } else {
-      for (const image_t id : frame.image_ids) kept_cameras.insert(state->images.at(id).camera_id);
+    for (const image_t id : frame.image_ids) {
+      users[state->images.at(id).camera_id].push_back(frame_id);
     }
   }
-  for (const auto& [frame_id, reason] : bogus) {
-    std::string focal;
-    for (const image_t image_id : state->frames.at(frame_id).image_ids) {
-      focal = SuspectFocalLength(*state, prior_cameras, kept_cameras,
-                                 state->images.at(image_id).camera_id);
-      if (!focal.empty()) break;
+  size_t num_reset = 0;
+  for (auto& [camera_id, frames] : users) {
+    if (state->constant_intrinsics.count(camera_id) > 0) continue;
+    std::string why;
+    if (!state->cameras.at(camera_id).HasBogusParams(options.min_focal_length_ratio,
+                                                     options.max_focal_length_ratio,
+                                                     options.max_extra_param, &why)) {
+      continue;
     }
-    LogWarning("global_mapper: dropped frame {}: bundle adjustment gave it bogus camera "
-               "parameters ({}; Mapper.min_focal_length_ratio / max_focal_length_ratio / "
-               "max_extra_param){}",
-               FrameNames(*state, {frame_id}), reason, focal);
-    state->frames.at(frame_id).registered = false;
+    frames.erase(std::unique(frames.begin(), frames.end()), frames.end());
+    LogWarning("global_mapper: bundle adjustment gave camera {} bogus parameters ({}; "
+               "Mapper.min_focal_length_ratio / max_focal_length_ratio / max_extra_param): "
+               "reset to its prior parameters and held from now on; used by {}",
+               camera_id, why, FrameNames(*state, frames));
+    state->cameras.at(camera_id).params = prior_cameras.at(camera_id).params;
+    state->constant_intrinsics.insert(camera_id);
+    ++num_reset;
   }
-  if (!bogus.empty()) DropUnregisteredObservations(state);
-  return bogus.size();
+  return num_reset;
 }
 
 MapperModelCounts ModelCounts(const MapperState& state) {
@@ -463,8 +455,8 @@ BundleAdjustmentOptions RoundBundleAdjustmentOptions(const GlobalMapperOptions& 
   return ba_options;
 }
 
-// One refinement round of component `c`: bundle adjustment (frames with
-// bogus cameras dropped after it), then (points
+// One refinement round of component `c`: bundle adjustment (repeated with
+// the cameras it made bogus reset and held), then (points
 // left out of a subsampled adjustment re-triangulated) filtering and, except
 // in the final round, retriangulation.
 MapperRoundSummary RefinementRound(const GlobalMapperOptions& options,
@@ -480,7 +472,12 @@ MapperRoundSummary RefinementRound(const GlobalMapperOptions& options,
   r.bundle_adjustment_skipped = options.skip_bundle_adjustment;
   if (!r.bundle_adjustment_skipped) {
     r.bundle_adjustment = RunBundleAdjustment(ba_options, state);
-    r.dropped_bogus_camera_frames = DropBogusCameraFrames(options, prior_cameras, state);
+    r.reset_bogus_cameras = ResetBogusCameras(options, prior_cameras, state);
+    if (r.reset_bogus_cameras > 0) {
+      // The poses and points followed the bogus intrinsics: adjust again
+      // with the reset cameras held.
+      r.bundle_adjustment = RunBundleAdjustment(ba_options, state);
+    }
   }
   r.bundle_adjustment_seconds = SecondsSince(t0);
   t0 = Clock::now();

@@ -88,12 +88,15 @@ struct GlobalMapperOptions {
   // Iteration cap of that final full adjustment (it starts from the
   // subsampled optimum).
   int final_max_num_iterations = 5;
-  // After each bundle adjustment, frames with a camera whose parameters are
-  // bogus (Camera::HasBogusParams: focal length / max(width, height) outside
-  // [min_focal_length_ratio in (0, 1], max_focal_length_ratio >= 1], or a distortion
-  // parameter above max_extra_param; COLMAP's mapper defaults) are
-  // unregistered: a wrong prior focal length lets the adjustment fit a
-  // degenerate far-away camera to its observations.
+  // After each bundle adjustment, a camera whose parameters are bogus
+  // (Camera::HasBogusParams: focal length / max(width, height) outside
+  // [min_focal_length_ratio in (0, 1], max_focal_length_ratio >= 1], or a
+  // distortion parameter above max_extra_param; COLMAP's mapper defaults) is
+  // reset to its prior parameters and held constant, and the adjustment runs
+  // again: a wrong prior focal length lets the adjustment fit a degenerate
+  // far-away camera to its observations, and distortion terms that few points
+  // constrain can run off. Its frames then stand or fall by their
+  // observations (min_frame_observations).
   double min_focal_length_ratio = 0.1;
   double max_focal_length_ratio = 10.0;
   double max_extra_param = 1.0;
@@ -140,7 +143,7 @@ struct MapperRoundSummary {
   bool bundle_adjustment_skipped = false;
   BundleAdjustmentStats bundle_adjustment;  // default when skipped
   double bundle_adjustment_seconds = 0.0;
-  size_t dropped_bogus_camera_frames = 0;  // unregistered after the adjustment
+  size_t reset_bogus_cameras = 0;  // reset to their prior after the adjustment
   size_t filtered_observations = 0;  // rejected for depth or reprojection error
   bool final_round = false;          // no retriangulation in the final round
   bool retriangulation_skipped = false;

@@ -4,9 +4,9 @@
 #include <cmath>
 #include <regex>
 
-#include <opencv2/imgcodecs.hpp>
 #include <tbb/parallel_for.h>
 
+#include "core/io/image_codec.h"
 #include "core/errors.h"
 #include "core/logging.h"
 #include "core/option_check.h"
@@ -315,7 +315,7 @@ Reconstruction ToReconstruction(const MapperState& state, const std::string& ima
     std::vector<char> unreadable(registered.size(), 0);
     tbb::parallel_for(size_t{0}, registered.size(), [&](size_t k) {
       const SfmImage& sfm_image = *registered[k];
-      const cv::Mat bgr = cv::imread(image_path + "/" + sfm_image.name, cv::IMREAD_COLOR);
+      const cv::Mat bgr = ReadImageFile(image_path + "/" + sfm_image.name, ImageReadMode::kColor);
       if (bgr.empty()) {
         unreadable[k] = 1;
         return;

@@ -24,6 +24,7 @@
 
 #include <cstdint>
 #include <map>
+#include <set>
 #include <string>
 #include <unordered_map>
 #include <vector>
@@ -113,6 +114,9 @@ struct Track {
 
 struct MapperState {
   std::map<camera_t, Camera> cameras;
+  // Cameras whose intrinsics bundle adjustment holds constant (reset to their
+  // prior after an adjustment made them bogus, global_mapper.h).
+  std::set<camera_t> constant_intrinsics;
   std::map<image_t, SfmImage> images;
   std::map<frame_t, SfmFrame> frames;
   std::map<camera_t, SE3> cam_from_rig;  // identity for every camera without a rig

@@ -1,3 +1,4 @@
+#include "core/io/image_codec.h"
 #include "core/io/plot.h"
 
 #include <fmt/format.h>
@@ -6,7 +7,6 @@
 #include <cmath>
 #include <limits>
 #include <opencv2/core.hpp>
-#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include "core/errors.h"
@@ -218,9 +218,7 @@ void WriteTrajectoryPlot(const std::string& path,
   cv::line(
       img, cv::Point(0, kTopHeight), cv::Point(kWidth, kTopHeight), kGrid, 2);
   DrawErrorPanel(img, data, kTopHeight);
-  std::vector<uchar> png;
-  THROW_CHECK_MSG(cv::imencode(".png", img, png), "PNG encoding failed");
-  WriteFileAtomically(path, std::string(png.begin(), png.end()));
+  WriteFileAtomically(path, EncodePng(img));
 }
 
 }  // namespace lisfm

@@ -1,3 +1,4 @@
+#include "core/io/image_codec.h"
 #include "core/io/rgbd_io.h"
 
 #include <fmt/format.h>
@@ -9,7 +10,6 @@
 #include <filesystem>
 #include <map>
 #include <opencv2/core.hpp>
-#include <opencv2/imgcodecs.hpp>
 #include <regex>
 #include <sstream>
 #include <utility>
@@ -232,8 +232,9 @@ CameraYaml ReadCameraYaml(const std::string& path) {
 
 // The resolution of an image file, from its pixels (OpenCV decodes the whole file).
 cv::Size ImageSize(const std::string& path) {
-  const cv::Mat image = cv::imread(path, cv::IMREAD_UNCHANGED);
-  if (image.empty()) throw InputError(path, "image", "cannot be read as an image");
+  std::string why;
+  const cv::Mat image = ReadImageFile(path, ImageReadMode::kUnchanged, &why);
+  if (image.empty()) throw InputError(path, "image", "cannot be read as an image: " + why);
   return image.size();
 }
 
@@ -679,8 +680,11 @@ RgbdImage LoadRgbdFrame(const RgbdSequence& sequence, size_t index, int factor) 
   for (const std::string* path : {&f.depth_path, &f.color_path}) {
     if (!FileExists(*path)) throw InputError(*path, "image", "not found");
   }
-  const cv::Mat depth = cv::imread(f.depth_path, cv::IMREAD_UNCHANGED);
-  if (depth.empty()) throw InputError(f.depth_path, "image", "cannot be read as an image");
+  std::string why;
+  const cv::Mat depth = ReadImageFile(f.depth_path, ImageReadMode::kUnchanged, &why);
+  if (depth.empty()) {
+    throw InputError(f.depth_path, "image", "cannot be read as an image: " + why);
+  }
   if (depth.type() != CV_16UC1) {
     throw InputError(f.depth_path,
                      "image",
@@ -689,8 +693,10 @@ RgbdImage LoadRgbdFrame(const RgbdSequence& sequence, size_t index, int factor) 
                                  depth.channels(),
                                  8 * static_cast<int>(depth.elemSize1())));
   }
-  const cv::Mat color = cv::imread(f.color_path, cv::IMREAD_COLOR);
-  if (color.empty()) throw InputError(f.color_path, "image", "cannot be read as an image");
+  const cv::Mat color = ReadImageFile(f.color_path, ImageReadMode::kColor, &why);
+  if (color.empty()) {
+    throw InputError(f.color_path, "image", "cannot be read as an image: " + why);
+  }
   if (color.size() != depth.size()) {
     throw InputError(f.color_path,
                      "image",
