@@ -47,6 +47,7 @@
 #include <tbb/parallel_invoke.h>
 
 #include "core/io/cloud_io.h"
+#include "core/io/cloud_io_pcl.h"
 #include "icp/bayesian_icp.h"
 #include "icp/icp.h"
 #include "icp/icp_covariance.h"

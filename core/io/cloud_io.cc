@@ -8,7 +8,6 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
-#include <mutex>
 #include <string_view>
 
 #include <fcntl.h>
@@ -16,11 +15,6 @@
 #include <unistd.h>
 
 #include <fmt/format.h>
-
-#include <pcl/PCLPointCloud2.h>
-#include <pcl/console/print.h>
-#include <pcl/io/pcd_io.h>
-#include <pcl/io/ply_io.h>
 
 #include "core/errors.h"
 #include "core/file_utils.h"
@@ -35,11 +29,6 @@ namespace {
 
 // Headers larger than this are not headers (PCL writes ~200 bytes).
 constexpr size_t kMaxHeaderBytes = 1 << 20;
-
-void SilencePcl() {
-  static std::once_flag once;
-  std::call_once(once, [] { pcl::console::setVerbosityLevel(pcl::console::L_ALWAYS); });
-}
 
 uint64_t FileSize(const std::string& path) {
   CheckFileExists(path, "point cloud file");
@@ -389,6 +378,7 @@ struct PlyElement {
   uint64_t count = 0;
   std::vector<std::string> properties;
   std::vector<int> sizes;       // scalar size, or the list's count size
+  std::vector<std::string> types;  // scalar type, or the list's item type
   std::vector<bool> is_list;
   std::vector<bool> is_integer;
 };
@@ -444,7 +434,8 @@ PlyHeader ParsePlyHeader(const std::string& path, uint64_t file_size) {
                          "with PLY types, found " + Quote(text));
       }
       e.properties.push_back(tokens.back());
-      e.sizes.push_back(size);
+      e.sizes.push_back(list ? PlyTypeSize(tokens[2]) : size);
+      e.types.push_back(list ? tokens[3] : type);
       e.is_list.push_back(list);
       e.is_integer.push_back(type.find("float") == std::string::npos && type != "double");
     } else {
@@ -516,131 +507,11 @@ void ValidatePlyAsciiVertices(const std::string& path, const PlyHeader& h, uint6
   }
 }
 
-// ---------------------------------------------------------------------------
-// PCLPointCloud2 -> PointCloud, by field name.
-
-int DatatypeSize(uint8_t type) {
-  switch (type) {
-    case pcl::PCLPointField::INT8:
-    case pcl::PCLPointField::UINT8: return 1;
-    case pcl::PCLPointField::INT16:
-    case pcl::PCLPointField::UINT16: return 2;
-    case pcl::PCLPointField::INT32:
-    case pcl::PCLPointField::UINT32:
-    case pcl::PCLPointField::FLOAT32: return 4;
-    case pcl::PCLPointField::INT64:
-    case pcl::PCLPointField::UINT64:
-    case pcl::PCLPointField::FLOAT64: return 8;
-    default: return 0;
-  }
-}
-
 template <typename T>
 double Load(const uint8_t* p) {
   T value;
   std::memcpy(&value, p, sizeof(T));
   return static_cast<double>(value);
-}
-
-double LoadValue(const uint8_t* p, uint8_t type) {
-  switch (type) {
-    case pcl::PCLPointField::INT8: return Load<int8_t>(p);
-    case pcl::PCLPointField::UINT8: return Load<uint8_t>(p);
-    case pcl::PCLPointField::INT16: return Load<int16_t>(p);
-    case pcl::PCLPointField::UINT16: return Load<uint16_t>(p);
-    case pcl::PCLPointField::INT32: return Load<int32_t>(p);
-    case pcl::PCLPointField::UINT32: return Load<uint32_t>(p);
-    case pcl::PCLPointField::INT64: return Load<int64_t>(p);
-    case pcl::PCLPointField::UINT64: return Load<uint64_t>(p);
-    case pcl::PCLPointField::FLOAT32: return Load<float>(p);
-    default: return Load<double>(p);  // FLOAT64; other types are rejected in FindField
-  }
-}
-
-struct FieldRef {
-  bool present = false;
-  uint32_t offset = 0;
-  uint8_t type = 0;
-};
-
-FieldRef FindField(const std::string& path, const pcl::PCLPointCloud2& blob, const std::string& name, bool required) {
-  FieldRef ref;
-  for (const pcl::PCLPointField& f : blob.fields) {
-    if (f.name != name) continue;
-    const int size = DatatypeSize(f.datatype);
-    if (size == 0) {
-      throw InputError(path, "field " + name, "unsupported data type " + std::to_string(f.datatype));
-    }
-    if (f.count != 1) {
-      throw InputError(path, "field " + name, "expected COUNT 1, found " + std::to_string(f.count));
-    }
-    if (f.offset + static_cast<uint32_t>(size) > blob.point_step) {
-      throw InputError(path, "field " + name, "lies outside the point record");
-    }
-    ref.present = true;
-    ref.offset = f.offset;
-    ref.type = f.datatype;
-    return ref;
-  }
-  if (required) {
-    std::string names;
-    for (const pcl::PCLPointField& f : blob.fields) names += (names.empty() ? "" : " ") + f.name;
-    throw InputError(path, "", "no field '" + name + "' (the file has: " + names + ")");
-  }
-  return ref;
-}
-
-PointCloud CloudFromBlob(const std::string& path, const pcl::PCLPointCloud2& blob) {
-  if (blob.is_bigendian) throw InputError(path, "", "big-endian point data is not supported");
-  const uint64_t width = blob.width, height = blob.height;
-  if (height > 0 && (blob.row_step < width * blob.point_step ||
-                     blob.data.size() < (height - 1) * blob.row_step + width * blob.point_step)) {
-    throw InputError(path, "", "PCL returned fewer data bytes than WIDTH * HEIGHT points need");
-  }
-  const FieldRef x = FindField(path, blob, "x", true);
-  const FieldRef y = FindField(path, blob, "y", true);
-  const FieldRef z = FindField(path, blob, "z", true);
-  const FieldRef intensity = FindField(path, blob, "intensity", false);
-  const FieldRef t = FindField(path, blob, "t", false);
-  const FieldRef ring = FindField(path, blob, "ring", false);
-  const FieldRef sensor_id = FindField(path, blob, "sensor_id", false);
-  if (t.present && t.type != pcl::PCLPointField::FLOAT32 && t.type != pcl::PCLPointField::FLOAT64) {
-    throw InputError(path, "field t",
-                     "expected float seconds since the scan stamp, found an integer type (e.g. Ouster "
-                     "nanoseconds); convert the file first");
-  }
-
-  PointCloud cloud;
-  cloud.points.resize(width * height);
-  for (uint64_t row = 0; row < height; ++row) {
-    for (uint64_t col = 0; col < width; ++col) {
-      const uint64_t index = row * width + col;
-      const uint8_t* record = blob.data.data() + row * blob.row_step + col * blob.point_step;
-      LidarPoint& p = cloud.points[index];
-      p.x = static_cast<float>(LoadValue(record + x.offset, x.type));
-      p.y = static_cast<float>(LoadValue(record + y.offset, y.type));
-      p.z = static_cast<float>(LoadValue(record + z.offset, z.type));
-      if (intensity.present) p.intensity = static_cast<float>(LoadValue(record + intensity.offset, intensity.type));
-      if (t.present) p.t = static_cast<float>(LoadValue(record + t.offset, t.type));
-      if (ring.present) {
-        const double v = LoadValue(record + ring.offset, ring.type);
-        if (!(v >= 0 && v <= 65535 && v == std::floor(v))) {
-          throw InputError(path, "record " + std::to_string(index),
-                           "ring = " + std::to_string(v) + ", expected an integer in [0, 65535]");
-        }
-        p.ring = static_cast<uint16_t>(v);
-      }
-      if (sensor_id.present) {
-        const double v = LoadValue(record + sensor_id.offset, sensor_id.type);
-        if (!(v >= 0 && v <= 255 && v == std::floor(v))) {
-          throw InputError(path, "record " + std::to_string(index),
-                           "sensor_id = " + std::to_string(v) + ", expected an integer in [0, 255]");
-        }
-        p.sensor_id = static_cast<uint8_t>(v);
-      }
-    }
-  }
-  return cloud;
 }
 
 // Empty clouds never reach PCL (it dereferences an empty mapping); the field
@@ -855,30 +726,188 @@ std::vector<Eigen::Vector3f> DecodePcdPositions(const std::string& path, const P
   return out;
 }
 
-// Reads `path` with PCL's Reader (pcl::PCDReader / pcl::PLYReader); PCL's
-// exceptions and a non-zero status become InputErrors (`status_message`).
-template <typename Reader>
-pcl::PCLPointCloud2 ReadBlobWithPcl(const std::string& path, const std::string& status_message) {
-  pcl::PCLPointCloud2 blob;
-  Eigen::Vector4f origin;
-  Eigen::Quaternionf orientation;
-  int version = 0;
-  int status = -1;
-  try {
-    Reader reader;
-    status = reader.read(path, blob, origin, orientation, version, 0);
-  } catch (const std::exception& e) {
-    throw InputError(path, "", std::string("PCL could not read the file: ") + e.what());
-  } catch (...) {
-    throw InputError(path, "", "PCL could not read the file");
-  }
-  if (status != 0) throw InputError(path, "", status_message);
-  return blob;
+// ---------------------------------------------------------------------------
+// ascii PCD bodies and PLY vertices: converted to binary records (the PCD
+// binary layout of a header from BinaryRecordsHeader), then DecodePcdBody.
+
+// The header of `h`'s records as a binary body starting at offset 0.
+PcdHeader BinaryRecordsHeader(const PcdHeader& h) {
+  PcdHeader b = h;
+  b.data = "binary";
+  b.data_offset = 0;
+  return b;
 }
 
-PointCloud ReadPcdThroughPcl(const std::string& path) {
-  return CloudFromBlob(
-      path, ReadBlobWithPcl<pcl::PCDReader>(path, "PCL could not read the file (corrupt data?)"));
+// Stores the (validated) number token as a value of PCD type (type, size) at
+// `out`, as PCL's ascii reader converts it: parsed, then cast to the field
+// type ("nan" is NaN; integers wrap to the field's width).
+void StoreToken(const std::string& token, char type, int size, uint8_t* out) {
+  const auto store = [out](auto value) { std::memcpy(out, &value, sizeof(value)); };
+  if (type == 'F') {
+    const double v = std::strtod(token.c_str(), nullptr);
+    if (size == 4) {
+      store(static_cast<float>(v));
+    } else {
+      store(v);
+    }
+    return;
+  }
+  const bool negative = !token.empty() && token[0] == '-';
+  const uint64_t bits = negative ? static_cast<uint64_t>(std::strtoll(token.c_str(), nullptr, 10))
+                                 : std::strtoull(token.c_str(), nullptr, 10);
+  switch (size) {
+    case 1: store(static_cast<uint8_t>(bits)); break;
+    case 2: store(static_cast<uint16_t>(bits)); break;
+    case 4: store(static_cast<uint32_t>(bits)); break;
+    default: store(bits); break;
+  }
+}
+
+// The binary records of `count` ascii lines of the fields of `h` from `body`
+// (empty lines skipped), starting at line `first_line`; `*next` gets the
+// offset after the last line read. InputError naming the line for a wrong
+// token count, a token that is not a number (an integer for I/U fields), or
+// too few lines.
+std::string AsciiRecords(const std::string& path, const PcdHeader& h, std::string_view body,
+                         int first_line, uint64_t count, const std::string& what, size_t* next) {
+  std::string records(count * h.point_bytes, '\0');
+  uint64_t done = 0;
+  size_t end = 0;
+  if (count > 0) {
+    ForEachLine(body, 0, first_line, [&](const std::string& line, int line_number, size_t after) {
+      end = after;
+      const std::vector<std::string> tokens = SplitString(line, " \t\r");
+      if (tokens.empty()) return true;
+      if (tokens.size() != h.values_per_point) {
+        throw InputError(path, Where(line_number),
+                         what + " " + std::to_string(done) + ": expected " +
+                             std::to_string(h.values_per_point) + " values, found " +
+                             std::to_string(tokens.size()));
+      }
+      uint8_t* out = reinterpret_cast<uint8_t*>(records.data()) + done * h.point_bytes;
+      size_t k = 0;
+      for (size_t f = 0; f < h.names.size(); ++f) {
+        for (int c = 0; c < h.counts[f]; ++c, ++k) {
+          const bool integer = h.types[f] != 'F';
+          if (!(integer ? IsIntegerToken(tokens[k]) : IsNumberToken(tokens[k]))) {
+            throw InputError(path, Where(line_number),
+                             what + " " + std::to_string(done) + ", " + h.names[f] + ": expected " +
+                                 (integer ? "an integer" : "a number") + ", found " + Quote(tokens[k]));
+          }
+          StoreToken(tokens[k], h.types[f], h.sizes[f], out);
+          out += h.sizes[f];
+        }
+      }
+      return ++done < count;
+    });
+  }
+  if (done != count) {
+    throw InputError(path, "", "expected " + std::to_string(count) + " " + what + " lines, found " +
+                                   std::to_string(done));
+  }
+  if (next != nullptr) *next = end;
+  return records;
+}
+
+std::string AsciiPcdRecords(const std::string& path, const PcdHeader& h, std::string_view file) {
+  const std::string_view body = file.substr(std::min<uint64_t>(h.data_offset, file.size()));
+  return AsciiRecords(path, h, body, h.data_line + 1, h.points, "point", nullptr);
+}
+
+// PLY scalar type -> PCD (type, size).
+char PlyPcdType(const std::string& type) {
+  if (type.find("float") != std::string::npos || type == "double") return 'F';
+  if (type[0] == 'u') return 'U';
+  return 'I';
+}
+
+uint64_t LoadUnsigned(const uint8_t* p, int size, bool big_endian) {
+  uint8_t bytes[8] = {};
+  for (int i = 0; i < size; ++i) bytes[i] = p[big_endian ? size - 1 - i : i];
+  uint64_t v = 0;
+  std::memcpy(&v, bytes, 8);
+  return v;
+}
+
+// The vertices of a PLY file: the vertex element's scalar properties as PCD
+// fields, the other elements skipped (ascii: one line per item; binary: list
+// lengths read to find the item sizes).
+PointCloud DecodePly(const std::string& path, const PlyHeader& ply, std::string_view file) {
+  const auto vertex = std::find_if(ply.elements.begin(), ply.elements.end(),
+                                   [](const PlyElement& e) { return e.name == "vertex"; });
+  if (std::find(vertex->is_list.begin(), vertex->is_list.end(), true) != vertex->is_list.end()) {
+    throw InputError(path, "element vertex", "list properties of vertices are not supported");
+  }
+  PcdHeader h;
+  h.names = vertex->properties;
+  for (size_t k = 0; k < vertex->properties.size(); ++k) {
+    h.types.push_back(PlyPcdType(vertex->types[k]));
+    h.sizes.push_back(vertex->sizes[k]);
+    h.counts.push_back(1);
+    h.point_bytes += static_cast<uint64_t>(vertex->sizes[k]);
+  }
+  h.values_per_point = h.names.size();
+  h.width = h.points = vertex->count;
+  h.data = "binary";
+  const std::string_view body = file.substr(std::min<uint64_t>(ply.data_offset, file.size()));
+  if (ply.format == "ascii") {
+    size_t pos = 0;
+    int line = ply.end_line + 1;
+    for (auto e = ply.elements.begin(); e != vertex; ++e) {  // one line per item
+      uint64_t items = 0;
+      ForEachLine(body, pos, line, [&](const std::string& text, int line_number, size_t after) {
+        pos = after;
+        line = line_number + 1;
+        if (text.find_first_not_of(" \t\r") == std::string::npos) return true;
+        return ++items < e->count;
+      });
+      if (items < e->count) {
+        throw InputError(path, "element " + e->name,
+                         "expected " + std::to_string(e->count) + " lines, found " + std::to_string(items));
+      }
+    }
+    const std::string records = AsciiRecords(path, h, body.substr(pos), line, vertex->count, "vertex", nullptr);
+    return DecodePcdBody(path, h, records);
+  }
+  const bool big_endian = ply.format == "binary_big_endian";
+  const auto* data = reinterpret_cast<const uint8_t*>(body.data());
+  uint64_t pos = 0;
+  const auto need = [&](uint64_t bytes, const std::string& element) {
+    if (bytes > body.size() || pos > body.size() - bytes) {
+      throw InputError(path, "element " + element, "binary data is truncated");
+    }
+  };
+  for (auto e = ply.elements.begin(); e != vertex; ++e) {
+    for (uint64_t i = 0; i < e->count; ++i) {
+      for (size_t k = 0; k < e->properties.size(); ++k) {
+        need(static_cast<uint64_t>(e->sizes[k]), e->name);
+        if (!e->is_list[k]) {
+          pos += static_cast<uint64_t>(e->sizes[k]);
+          continue;
+        }
+        const uint64_t length = LoadUnsigned(data + pos, e->sizes[k], big_endian);
+        pos += static_cast<uint64_t>(e->sizes[k]);
+        const uint64_t item = static_cast<uint64_t>(PlyTypeSize(e->types[k]));
+        if (length > body.size() / item) throw InputError(path, "element " + e->name, "binary data is truncated");
+        need(length * item, e->name);
+        pos += length * item;
+      }
+    }
+  }
+  if (h.point_bytes > 0 && vertex->count > body.size() / h.point_bytes) {
+    throw InputError(path, "element vertex", "binary data is truncated");
+  }
+  need(vertex->count * h.point_bytes, "vertex");
+  if (!big_endian) return DecodePcdBody(path, h, body.substr(pos, vertex->count * h.point_bytes));
+  std::string records(body.substr(pos, vertex->count * h.point_bytes));
+  for (uint64_t i = 0; i < vertex->count; ++i) {
+    char* record = records.data() + i * h.point_bytes;
+    for (int size : h.sizes) {
+      std::reverse(record, record + size);
+      record += size;
+    }
+  }
+  return DecodePcdBody(path, h, records);
 }
 
 // A PCD file mapped once, its header parsed and (ascii) its body validated.
@@ -886,28 +915,22 @@ class PcdFile {
  public:
   explicit PcdFile(const std::string& path)
       : path_(path), size_(FileSize(path)), bytes_(path, size_) {
-    SilencePcl();
     header_ = ParsePcdHeader(path_, size_, bytes_.view());
     if (header_.data == "ascii") ValidatePcdAsciiBody(path_, header_, bytes_.view());
   }
   const PcdHeader& header() const { return header_; }
   std::string_view bytes() const { return bytes_.view(); }
-  // Binary bodies lisfm decodes itself. PCL's compressed reader drops fields
-  // named "_" from the stream (and then lays records out inconsistently); such
-  // files, and ascii bodies, keep PCL's behaviour.
-  bool DecodesDirectly() const {
-    return header_.data != "ascii" &&
-           !(header_.data == "binary_compressed" &&
-             std::find(header_.names.begin(), header_.names.end(), "_") != header_.names.end());
-  }
-  // The cloud: DecodePcdBody where it applies and `decode_directly`, else PCL.
-  PointCloud Cloud(bool decode_directly) const {
+  // Binary bodies are decoded in place; ascii bodies are first converted to
+  // binary records.
+  bool DecodesDirectly() const { return header_.data != "ascii"; }
+  PointCloud Cloud() const {
     if (header_.points == 0) {
       CheckXyzNames(path_, header_.names);
       return PointCloud();
     }
-    if (decode_directly && DecodesDirectly()) return DecodePcdBody(path_, header_, bytes_.view());
-    return ReadPcdThroughPcl(path_);
+    if (DecodesDirectly()) return DecodePcdBody(path_, header_, bytes_.view());
+    const std::string records = AsciiPcdRecords(path_, header_, bytes_.view());
+    return DecodePcdBody(path_, BinaryRecordsHeader(header_), records);
   }
 
  private:
@@ -961,25 +984,17 @@ std::string Lowercase(std::string s) {
 
 }  // namespace
 
-PointCloud ReadPcd(const std::string& path) { return PcdFile(path).Cloud(true); }
-
-PointCloud ReadPcdWithPclReader(const std::string& path) { return PcdFile(path).Cloud(false); }
+PointCloud ReadPcd(const std::string& path) { return PcdFile(path).Cloud(); }
 
 PointCloud ReadPly(const std::string& path) {
-  SilencePcl();
   const uint64_t file_size = FileSize(path);
   const PlyHeader header = ParsePlyHeader(path, file_size);
   if (header.format == "ascii") ValidatePlyAsciiVertices(path, header, file_size);
   const auto vertex = std::find_if(header.elements.begin(), header.elements.end(),
                                    [](const PlyElement& e) { return e.name == "vertex"; });
   if (vertex->count == 0) return PointCloud();
-  const pcl::PCLPointCloud2 blob = ReadBlobWithPcl<pcl::PLYReader>(
-      path, "PCL could not parse the PLY data (truncated or malformed)");
-  if (static_cast<uint64_t>(blob.width) * blob.height != vertex->count) {
-    throw InputError(path, "", "PCL read " + std::to_string(blob.width * blob.height) +
-                                   " vertices, the header declares " + std::to_string(vertex->count));
-  }
-  return CloudFromBlob(path, blob);
+  const FileBytes bytes(path, file_size);
+  return DecodePly(path, header, bytes.view());
 }
 
 void WritePcd(const std::string& path, const PointCloud& cloud, bool binary) {
@@ -1030,7 +1045,7 @@ std::vector<Eigen::Vector3f> ReadPointPositions(const std::string& path, size_t*
     if (file.header().points > 0 && file.DecodesDirectly()) {
       return DecodePcdPositions(path, file.header(), file.bytes(), num_non_finite);
     }
-    cloud = file.Cloud(true);
+    cloud = file.Cloud();
   } else {
     cloud = ReadPointCloud(path);
   }

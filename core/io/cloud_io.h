@@ -1,9 +1,10 @@
 // Point cloud files: PCD (ascii, binary, binary_compressed) and PLY (ascii,
 // binary little/big endian) in, PCD (binary or ascii) and binary little-endian
-// PLY out. Binary and binary_compressed PCD bodies are decoded here, directly
-// from the file's bytes (one read, no intermediate PCLPointCloud2; 3-10x faster
-// than PCL's reader on LiDAR scans); ascii PCD and all PLY go through PCL's
-// readers. PCL never appears in this header.
+// PLY out, parsed here from the file's bytes (one read; binary bodies decoded
+// in place, LZF for binary_compressed; 3-10x faster than PCL's readers on
+// LiDAR scans, and no PCL io in the executable: its VTK dependencies cost
+// ~0.03 s of dynamic loading at every process start). cloud_io_pcl.h reads
+// the same files through PCL's readers, the reference the tests compare with.
 //
 // Fields (by name; any other field in a file is ignored):
 //   x y z       required, any numeric type, converted to float32 metres;
@@ -37,13 +38,13 @@
 // Failures: a missing, empty, truncated or malformed file, an unknown
 // extension, a missing x/y/z field or an out-of-range attribute throws one
 // InputError naming the path (and the header line or point record). The PCD
-// header (and an ascii body) is validated by lisfm before PCL sees the file,
-// because PCL 1.13 crashes on some malformed PCDs (e.g. an empty file) and
-// silently accepts non-numeric ascii tokens. Writers throw InputError when the
-// output cannot be written; output appears atomically (temporary name + rename).
+// header and body are validated before anything is decoded (the checks were
+// written against PCL 1.13, which crashes on some malformed PCDs, e.g. an empty
+// file, and silently accepts non-numeric ascii tokens). Writers throw
+// InputError when the output cannot be written; output appears atomically
+// (temporary name + rename).
 //
-// Threads: the functions are reentrant. The first call sets PCL's console
-// verbosity to L_ALWAYS for the whole process (lisfm never wants PCL output).
+// Threads: the functions are reentrant.
 #pragma once
 
 #include <string>
@@ -56,9 +57,6 @@
 namespace lisfm {
 
 PointCloud ReadPcd(const std::string& path);
-// The same validation and result as ReadPcd, but the body is always decoded by
-// PCL's PCDReader (the reference for the direct decoder; tests and benchmarks).
-PointCloud ReadPcdWithPclReader(const std::string& path);
 // `binary` = false writes DATA ascii (human-readable, ~3x larger, slower).
 void WritePcd(const std::string& path, const PointCloud& cloud, bool binary = true);
 

@@ -1,5 +1,7 @@
 #include "core/io/cloud_io.h"
+#include "core/io/cloud_io_pcl.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <filesystem>
@@ -9,6 +11,7 @@
 #include <sstream>
 #include <string>
 
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 
 #include "core/file_utils.h"
@@ -395,6 +398,96 @@ TEST(CloudIoDirectDecoder, MatchesPclReaderOnForeignLayouts) {
              "WIDTH 1\nHEIGHT 1\nPOINTS 1\nDATA binary\n" + std::string(20, '\0'));
   EXPECT_TRUE(test::ThrowsInputError([&] { ReadPcd(count3); },
                                      {count3, "field intensity: expected COUNT 1, found 2"}));
+}
+
+// ascii PCD and PLY (ascii, binary little and big endian) are parsed by
+// cloud_io too: the same clouds as PCL's readers on every numeric type, and
+// elements before the vertices (with list properties) are skipped.
+TEST(CloudIoDirectDecoder, MatchesPclReaderOnAsciiPcdAndPly) {
+  test::TempDir dir;
+  const std::string ascii_pcd = dir.File("foreign_ascii.pcd");
+  std::string body;
+  for (int i = 0; i < 6; ++i) {
+    body += fmt::format("{} {} 7 7 7 {} {} {} {} {}\n", i == 3 ? "nan" : fmt::format("{:.17g}", 0.1 * i - 2.5),
+                        -1.25 * i, -300 + 77 * i, 25 * i, 6000 * i, fmt::format("{:.17g}", 1e-3 * i),
+                        65535 - i);
+  }
+  test::WriteText(ascii_pcd,
+                  "VERSION 0.7\nFIELDS x y pad z sensor_id ring t intensity\nSIZE 8 4 4 2 1 4 8 2\n"
+                  "TYPE F F F I U I F U\nCOUNT 1 1 3 1 1 1 1 1\nWIDTH 6\nHEIGHT 1\nPOINTS 6\nDATA ascii\n" +
+                      body);
+  const PointCloud pcd = ReadPcd(ascii_pcd);
+  ASSERT_EQ(pcd.size(), 6u);
+  ExpectSameCloud(ReadPcdWithPclReader(ascii_pcd), pcd);
+  EXPECT_EQ(pcd.points[5].z, static_cast<float>(-300 + 77 * 5));
+  EXPECT_EQ(pcd.points[5].ring, 30000);
+  EXPECT_EQ(pcd.points[4].t, static_cast<float>(4e-3));
+
+  // PLY: the same vertices; char .. double property types.
+  const std::string props =
+      "property double x\nproperty float y\nproperty short z\nproperty uchar sensor_id\n"
+      "property int ring\nproperty double t\nproperty ushort intensity\n";
+  std::string ascii, le, be;
+  const auto put_be = [&be](auto v) {
+    char b[sizeof(v)];
+    std::memcpy(b, &v, sizeof(v));
+    std::reverse(b, b + sizeof(v));
+    be.append(b, sizeof(v));
+  };
+  for (int i = 0; i < 6; ++i) {
+    const double x = 0.1 * i - 2.5;
+    ascii += fmt::format("{:.17g} {} {} {} {} {:.17g} {}\n", x, -1.25 * i, -300 + 77 * i, 25 * i, 6000 * i,
+                         1e-3 * i, 65535 - i);
+    Put(&le, x), put_be(x);
+    Put(&le, -1.25f * i), put_be(-1.25f * i);
+    Put(&le, static_cast<int16_t>(-300 + 77 * i)), put_be(static_cast<int16_t>(-300 + 77 * i));
+    Put(&le, static_cast<uint8_t>(25 * i)), put_be(static_cast<uint8_t>(25 * i));
+    Put(&le, static_cast<int32_t>(6000 * i)), put_be(static_cast<int32_t>(6000 * i));
+    Put(&le, 1e-3 * i), put_be(1e-3 * i);
+    Put(&le, static_cast<uint16_t>(65535 - i)), put_be(static_cast<uint16_t>(65535 - i));
+  }
+  const std::string tail = "element face 1\nproperty list uchar int vertex_indices\nend_header\n";
+  std::string face_le, face_be;
+  Put(&face_le, static_cast<uint8_t>(3));
+  face_be += static_cast<char>(3);
+  for (int32_t k : {0, 1, 2}) Put(&face_le, k), put_be(k);
+  face_be += be.substr(be.size() - 12);  // the three indices, big endian
+  be.resize(be.size() - 12);
+  const std::map<std::string, std::string> files = {
+      {"ascii.ply", "ply\nformat ascii 1.0\nelement vertex 6\n" + props + tail + ascii + "3 0 1 2\n"},
+      {"le.ply", "ply\nformat binary_little_endian 1.0\nelement vertex 6\n" + props + tail + le + face_le},
+      {"be.ply", "ply\nformat binary_big_endian 1.0\nelement vertex 6\n" + props + tail + be + face_be},
+  };
+  for (const auto& [name, text] : files) {
+    WriteBytes(dir.File(name), text);
+    const PointCloud ply = ReadPly(dir.File(name));
+    ASSERT_EQ(ply.size(), 6u) << name;
+    ExpectSameCloud(ReadPlyWithPclReader(dir.File(name)), ply);
+    for (size_t i = 0; i < 6; ++i) {
+      EXPECT_EQ(ply.points[i].x, static_cast<float>(0.1 * i - 2.5)) << name << " " << i;
+      EXPECT_EQ(ply.points[i].ring, 6000 * i) << name;
+      EXPECT_EQ(ply.points[i].intensity, 65535.f - i) << name;
+    }
+  }
+  // A face element before the vertices (list lengths decide its size).
+  const std::string head = "element face 2\nproperty list uchar int vertex_indices\nproperty uchar flag\n"
+                           "element vertex 6\n" + props + "end_header\n";
+  std::string faces_le;
+  for (int f = 0; f < 2; ++f) {
+    Put(&faces_le, static_cast<uint8_t>(f + 3));
+    for (int k = 0; k < f + 3; ++k) Put(&faces_le, static_cast<int32_t>(k));
+    Put(&faces_le, static_cast<uint8_t>(9));
+  }
+  WriteBytes(dir.File("faces_first.ply"), "ply\nformat binary_little_endian 1.0\n" + head + faces_le + le);
+  WriteBytes(dir.File("faces_first_ascii.ply"),
+             "ply\nformat ascii 1.0\n" + head + "3 0 1 2 9\n4 0 1 2 3 9\n" + ascii);
+  for (const std::string name : {"faces_first.ply", "faces_first_ascii.ply"}) {
+    ExpectSameCloud(ReadPly(dir.File("le.ply")), ReadPly(dir.File(name)));
+  }
+  WriteBytes(dir.File("faces_cut.ply"),
+             "ply\nformat binary_little_endian 1.0\n" + head + faces_le.substr(0, 10));
+  EXPECT_TRUE(test::ThrowsInputError([&] { ReadPly(dir.File("faces_cut.ply")); },
+                                     {dir.File("faces_cut.ply"), "truncated"}));
 }
 
 TEST(CloudIoDirectDecoder, MatchesPclReaderOnFilesWrittenByPcl) {
