@@ -192,6 +192,9 @@ std::string EncodePng(const cv::Mat& image, int compression) {
   png_infop info = png_create_info_struct(png);
   THROW_CHECK(info != nullptr);
   std::string out;
+  // Stored (level 0) output is the raw rows plus a filter byte per row and
+  // the chunk framing; compressed output is smaller.
+  out.reserve(image.total() * image.elemSize() + static_cast<size_t>(image.rows) + 1024);
   std::vector<png_bytep> rows(static_cast<size_t>(image.rows));
   if (setjmp(png_jmpbuf(png))) {
     png_destroy_write_struct(&png, &info);
