@@ -1121,18 +1121,18 @@ void AddGlobalMapperOptions(OptionManager* options,
                      R::AtLeast(1));
   options->AddDouble("Mapper.min_focal_length_ratio",
                      &mapper->min_focal_length_ratio,
-                     "frames whose camera has a focal length / max(width, height) below "
-                     "this after bundle adjustment are dropped",
+                     "a camera whose focal length / max(width, height) falls below this in "
+                     "bundle adjustment is reset to its prior and held",
                      R::GreaterThan(0).AndAtMost(1));
   options->AddDouble("Mapper.max_focal_length_ratio",
                      &mapper->max_focal_length_ratio,
-                     "frames whose camera has a focal length / max(width, height) above "
-                     "this after bundle adjustment are dropped",
+                     "a camera whose focal length / max(width, height) rises above this in "
+                     "bundle adjustment is reset to its prior and held",
                      R::AtLeast(1));
   options->AddDouble("Mapper.max_extra_param",
                      &mapper->max_extra_param,
-                     "frames whose camera has a distortion parameter |k| above this after "
-                     "bundle adjustment are dropped",
+                     "a camera whose distortion parameter |k| rises above this in bundle "
+                     "adjustment is reset to its prior and held",
                      R::GreaterThan(0));
   options->AddInt("Mapper.num_refinement_rounds",
                   &mapper->num_refinement_rounds,
