@@ -1,6 +1,7 @@
 #include "core/io/image_codec.h"
 
 #include <csetjmp>
+#include <cstdint>
 #include <cstdio>
 #include <cstring>
 #include <fstream>
@@ -21,6 +22,17 @@ namespace {
 
 void SetError(std::string* error, const std::string& message) {
   if (error != nullptr) *error = message;
+}
+
+// Largest decoded image (bytes): 512 MiB, ~170 megapixels of 8-bit colour. A
+// header announcing more is rejected before anything is allocated (libjpeg's
+// progressive mode needs twice that again for its coefficients).
+constexpr uint64_t kMaxDecodedBytes = uint64_t{512} << 20;
+
+std::string TooLarge(uint64_t width, uint64_t height, uint64_t bytes) {
+  return std::to_string(width) + " x " + std::to_string(height) + " pixels (" +
+         std::to_string(bytes >> 20) + " MiB decoded) exceed the " +
+         std::to_string(kMaxDecodedBytes >> 20) + " MiB limit";
 }
 
 // --- PNG (libpng's classic API; errors longjmp back to the caller) ---
@@ -84,6 +96,12 @@ cv::Mat DecodePng(const std::string& bytes, ImageReadMode mode, std::string* err
   const png_uint_32 width = png_get_image_width(png, info);
   const png_uint_32 height = png_get_image_height(png, info);
   const int channels = png_get_channels(png, info);
+  const uint64_t decoded = static_cast<uint64_t>(png_get_rowbytes(png, info)) * height;
+  if (decoded > kMaxDecodedBytes) {
+    png_destroy_read_struct(&png, &info, nullptr);
+    SetError(error, "PNG of " + TooLarge(width, height, decoded));
+    return cv::Mat();
+  }
   const int depth = png_get_bit_depth(png, info) == 16 ? CV_16U : CV_8U;
   image.create(static_cast<int>(height), static_cast<int>(width), CV_MAKETYPE(depth, channels));
   THROW_CHECK_EQ(png_get_rowbytes(png, info), image.step[0]);
@@ -135,6 +153,12 @@ cv::Mat DecodeJpeg(const std::string& bytes, ImageReadMode mode, std::string* er
                reinterpret_cast<const unsigned char*>(bytes.data()),
                static_cast<unsigned long>(bytes.size()));
   jpeg_read_header(&cinfo, TRUE);
+  const uint64_t decoded = uint64_t{cinfo.image_width} * cinfo.image_height * 3;
+  if (decoded > kMaxDecodedBytes) {
+    jpeg_destroy_decompress(&cinfo);
+    SetError(error, "JPEG of " + TooLarge(cinfo.image_width, cinfo.image_height, decoded));
+    return cv::Mat();
+  }
   const bool grey = cinfo.num_components == 1 && mode == ImageReadMode::kUnchanged;
   // libjpeg-turbo writes BGR directly (JCS_EXT_BGR); CMYK files are not read.
   cinfo.out_color_space = grey ? JCS_GRAYSCALE : JCS_EXT_BGR;

@@ -105,6 +105,20 @@ TEST(ImageCodec, BadFilesGiveAnEmptyImageAndTheReason) {
   }
   EXPECT_TRUE(ReadImageFile(dir.File("cut.jpg"), ImageReadMode::kColor, &why).empty());
   EXPECT_NE(why.find("invalid JPEG"), std::string::npos) << why;
+  // Headers announcing more than 512 MiB of pixels are refused before decoding:
+  // a JPEG whose frame header says 60000 x 60000 (the seed's SOF0 size fields).
+  std::string big(reinterpret_cast<const char*>(jpeg.data()), jpeg.size());
+  const size_t sof = big.find("\xFF\xC0");
+  ASSERT_NE(sof, std::string::npos);
+  for (const size_t at : {sof + 5, sof + 7}) {  // height, width: big endian
+    big[at] = static_cast<char>(0xEA);
+    big[at + 1] = static_cast<char>(0x60);
+  }
+  {
+    std::ofstream(dir.File("huge.jpg"), std::ios::binary) << big;
+  }
+  EXPECT_TRUE(ReadImageFile(dir.File("huge.jpg"), ImageReadMode::kColor, &why).empty());
+  EXPECT_NE(why.find("60000 x 60000 pixels"), std::string::npos) << why;
   // Unsupported layouts are programming errors.
   EXPECT_THROW(EncodePng(cv::Mat(4, 4, CV_32FC1)), InternalError);
   EXPECT_THROW(EncodePng(cv::Mat(4, 4, CV_8UC2)), InternalError);
