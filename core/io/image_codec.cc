@@ -10,6 +10,8 @@
 #include <vector>
 
 #include <jpeglib.h>
+// jpeglib.h first: jerror.h uses its types.
+#include <jerror.h>
 #include <png.h>
 
 #include <opencv2/core.hpp>
@@ -134,14 +136,20 @@ void JpegErrorExit(j_common_ptr cinfo) {
   std::longjmp(e->jump, 1);
 }
 
-void JpegOutputMessage(j_common_ptr) {}
+// Warnings are ignored (many cameras write benign ones, e.g. extraneous bytes
+// before a marker), except the end of the data before the end of the image:
+// libjpeg would go on to decode the rest as grey, so that a 100-byte file
+// announcing a large frame costs a full-size decode.
+void JpegEmitMessage(j_common_ptr cinfo, int msg_level) {
+  if (msg_level < 0 && cinfo->err->msg_code == JWRN_JPEG_EOF) cinfo->err->error_exit(cinfo);
+}
 
 cv::Mat DecodeJpeg(const std::string& bytes, ImageReadMode mode, std::string* error) {
   jpeg_decompress_struct cinfo;
   JpegError jerr;
   cinfo.err = jpeg_std_error(&jerr.manager);
   jerr.manager.error_exit = JpegErrorExit;
-  jerr.manager.output_message = JpegOutputMessage;
+  jerr.manager.emit_message = JpegEmitMessage;
   cv::Mat image;
   if (setjmp(jerr.jump)) {
     jpeg_destroy_decompress(&cinfo);

@@ -105,6 +105,13 @@ TEST(ImageCodec, BadFilesGiveAnEmptyImageAndTheReason) {
   }
   EXPECT_TRUE(ReadImageFile(dir.File("cut.jpg"), ImageReadMode::kColor, &why).empty());
   EXPECT_NE(why.find("invalid JPEG"), std::string::npos) << why;
+  // Data ending before the image does: an error, not a grey-filled decode.
+  {
+    std::ofstream(dir.File("short.jpg"), std::ios::binary)
+        .write(reinterpret_cast<const char*>(jpeg.data()), static_cast<std::streamsize>(jpeg.size() / 2));
+  }
+  EXPECT_TRUE(ReadImageFile(dir.File("short.jpg"), ImageReadMode::kColor, &why).empty());
+  EXPECT_NE(why.find("invalid JPEG: Premature end of JPEG file"), std::string::npos) << why;
   // Headers announcing more than 512 MiB of pixels are refused before decoding:
   // a JPEG whose frame header says 60000 x 60000 (the seed's SOF0 size fields).
   std::string big(reinterpret_cast<const char*>(jpeg.data()), jpeg.size());
