@@ -84,6 +84,9 @@ mkdir -p "$logs"
 supp="$LISFM_ROOT/scripts/sanitizers"
 export ASAN_OPTIONS="detect_leaks=1:halt_on_error=1:abort_on_error=0:detect_stack_use_after_return=0:log_path=$logs/asan"
 export LSAN_OPTIONS="suppressions=$supp/lsan.supp:print_suppressions=0"
+# Open MPI's components stay loaded until exit, so that their frames keep their names in
+# leak reports (lsan.supp matches them).
+export OMPI_MCA_mca_base_component_disable_dlclose=1
 export UBSAN_OPTIONS="halt_on_error=1:print_stacktrace=1:suppressions=$supp/ubsan.supp:log_path=$logs/ubsan"
 cd "$LISFM_BUILD_DIR"
 status=0
